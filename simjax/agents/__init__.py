@@ -1,0 +1,18 @@
+"""The learner: rollouts, the A2C loss, the jitted update and ``make_train(config)``."""
+
+from simjax.agents.a2c import (
+    RunnerState,
+    Trainer,
+    Transition,
+    make_train,
+    make_trainer,
+    n_step_returns,
+    summarize,
+    total_reward,
+)
+from simjax.agents.config import ALGOS, TrainConfig
+
+__all__ = [
+    "ALGOS", "RunnerState", "TrainConfig", "Trainer", "Transition", "make_train",
+    "make_trainer", "n_step_returns", "summarize", "total_reward",
+]

@@ -1,0 +1,192 @@
+"""Synchronous LSTM-A2C (the paper's LSTM-A3C with its asynchronous actors made a ``vmap``).
+
+``make_train(config)`` returns a pure ``train(key)``: N environments step in one ``jax.vmap``,
+a rollout of T steps is a ``lax.scan``, and ``lax.scan`` over updates runs a whole chunk of K
+updates inside one compiled call. Seeds are a ``jax.vmap`` of the same functions over keys.
+
+Per update, with values V from the network and ``done``/``trunc`` from the environment:
+    r_t   = task_scale * r^e_t + bonus_t                         (the seam for novelty models)
+    G_T   = V(o_T)
+    G_t   = r_t + gamma * ((1 - done_t) G_{t+1} + trunc_t V(o_t))
+    loss  = -mean(log pi(a_t|o_t) (G_t - V(o_t))) + c_v mean((G_t - V(o_t))^2) - c_H mean(H[pi])
+A termination (goal reached) stops the return there; a truncation (time limit) bootstraps.
+The auto-resetting environment returns the new episode's first frame, not the truncated
+episode's last one, so the truncation bootstrap uses V(o_t), the value of the last frame the
+episode showed; with 525-step episodes and 0/1 rewards this one-step shift is immaterial.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import chex
+import jax
+import jax.numpy as jnp
+import optax
+
+from simjax.agents.config import TrainConfig
+from simjax.envs import make
+from simjax.networks import ActorCritic
+
+
+class Transition(NamedTuple):
+    obs: jnp.ndarray  # (T, N, H, W, C) uint8, o_t
+    reset: jnp.ndarray  # (T, N) bool, o_t is an episode's first frame
+    action: jnp.ndarray  # (T, N) int32
+    reward: jnp.ndarray  # (T, N) float32, extrinsic r^e_t
+    done: jnp.ndarray  # (T, N) float32, the step ended the episode
+    truncation: jnp.ndarray  # (T, N) float32, ...by the time limit
+    metrics: dict  # (T, N) episode statistics, valid where metrics['episode_done']
+
+
+class RunnerState(NamedTuple):
+    params: chex.ArrayTree
+    opt_state: chex.ArrayTree
+    env_state: chex.ArrayTree  # batched brax State
+    carry: tuple  # LSTM (c, h), each (N, hidden)
+    reset: jnp.ndarray  # (N,) bool: env_state.obs starts an episode
+    key: jnp.ndarray
+
+
+class Trainer(NamedTuple):
+    """The pieces of a run: ``init(key)``, ``run_chunk(state)`` (K updates) and ``train(key)``."""
+
+    init: Callable
+    run_chunk: Callable
+    train: Callable
+    network: ActorCritic
+
+
+def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) -> jnp.ndarray:
+    """The one place where the reward is formed: r = task_scale * r_e + bonus."""
+    return task_scale * extrinsic + bonus
+
+
+def n_step_returns(rewards, dones, truncations, values, gamma: float):
+    """n-step returns G_t (T, N) from rewards/dones/truncations (T, N) and values (T+1, N)."""
+    chex.assert_equal_shape([rewards, dones, truncations])
+    chex.assert_shape(values, (rewards.shape[0] + 1,) + rewards.shape[1:])
+
+    def back(next_return, xs):
+        r, d, tr, v = xs
+        g = r + gamma * ((1.0 - d) * next_return + tr * v)
+        return g, g
+
+    _, returns = jax.lax.scan(back, values[-1], (rewards, dones, truncations, values[:-1]), reverse=True)
+    return returns
+
+
+def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bonus, config: TrainConfig):
+    """The A2C objective on one rollout, and its parts for logging."""
+    obs = jnp.concatenate([traj.obs, last_obs[None]], axis=0)
+    reset = jnp.concatenate([traj.reset, last_reset[None]], axis=0)
+    _, logits, values = network.apply(params, carry0, obs, reset)
+    logits, value = logits[:-1], values[:-1]
+    rewards = total_reward(config.task_scale, traj.reward, bonus)
+    returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), config.gamma)
+    advantage = returns - jax.lax.stop_gradient(value)
+    log_probs = jax.nn.log_softmax(logits)
+    log_pi = jnp.take_along_axis(log_probs, traj.action[..., None], axis=-1)[..., 0]
+    entropy = -jnp.sum(jnp.exp(log_probs) * log_probs, axis=-1)
+    policy_loss = -jnp.mean(log_pi * advantage)
+    value_loss = jnp.mean((returns - value) ** 2)
+    entropy_mean = jnp.mean(entropy)
+    loss = policy_loss + config.value_coef * value_loss - config.entropy_coef * entropy_mean
+    return loss, {
+        "policy_loss": policy_loss,
+        "value_loss": value_loss,
+        "entropy": entropy_mean,
+        "value_mean": jnp.mean(value),
+    }
+
+
+def make_trainer(config: TrainConfig, env=None) -> Trainer:
+    env = make(config.env) if env is None else env
+    network = ActorCritic(num_actions=env.action_size)
+    tx = optax.chain(
+        optax.clip_by_global_norm(config.max_grad_norm),
+        optax.adam(config.learning_rate, eps=1e-5),
+    )
+    N, T = config.num_envs, config.rollout_len
+
+    def init(key) -> RunnerState:
+        k_net, k_env, k_run = jax.random.split(key, 3)
+        env_state = jax.vmap(env.reset)(jax.random.split(k_env, N))
+        carry = network.initial_carry(N)
+        reset = jnp.ones((N,), bool)
+        params = network.init(k_net, carry, env_state.obs[None], reset[None])
+        return RunnerState(params, tx.init(params), env_state, carry, reset, k_run)
+
+    def rollout(runner: RunnerState):
+        def env_step(state, key):
+            env_state, carry, reset = state
+            carry, logits, _ = network.apply(runner.params, carry, env_state.obs[None], reset[None])
+            action = jax.random.categorical(key, logits[0]).astype(jnp.int32)
+            next_state = jax.vmap(env.step)(env_state, action)
+            tr = Transition(
+                obs=env_state.obs,
+                reset=reset,
+                action=action,
+                reward=next_state.reward,
+                done=next_state.done,
+                truncation=next_state.info["truncation"],
+                metrics=next_state.metrics,
+            )
+            return (next_state, carry, next_state.done > 0), tr
+
+        key, sub = jax.random.split(runner.key)
+        (env_state, carry, reset), traj = jax.lax.scan(
+            env_step, (runner.env_state, runner.carry, runner.reset), jax.random.split(sub, T)
+        )
+        return env_state, carry, reset, key, traj
+
+    def update(runner: RunnerState, _):
+        env_state, carry, reset, key, traj = rollout(runner)
+        chex.assert_shape(traj.obs, (T, N) + tuple(env.observation_size))
+        bonus = jnp.zeros_like(traj.reward)  # novelty models plug in here (issue 3)
+        grad_fn = jax.grad(a2c_loss, has_aux=True)
+        grads, info = grad_fn(runner.params, network, runner.carry, traj, env_state.obs, reset, bonus, config)
+        updates, opt_state = tx.update(grads, runner.opt_state)
+        params = optax.apply_updates(runner.params, updates)
+        m = traj.metrics
+        done = m["episode_done"]
+        info = {
+            **info,
+            "grad_norm": optax.global_norm(grads),
+            "episodes": jnp.sum(done),
+            "successes": jnp.sum(done * m["episode_success"]),
+            "length_sum": jnp.sum(done * m["episode_length"]),
+            "return_sum": jnp.sum(done * m["episode_return"]),
+        }
+        return RunnerState(params, opt_state, env_state, carry, reset, key), info
+
+    def run_chunk(runner: RunnerState):
+        """K = config.updates_per_log updates; episode counts summed, losses averaged."""
+        runner, info = jax.lax.scan(update, runner, None, config.updates_per_log)
+        sums = ("episodes", "successes", "length_sum", "return_sum")
+        return runner, {k: (v.sum() if k in sums else v.mean()) for k, v in info.items()}
+
+    def train(key):
+        runner = init(key)
+        return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
+
+    return Trainer(init, run_chunk, train, network)
+
+
+def make_train(config: TrainConfig, env=None):
+    """A pure ``train(key) -> (final RunnerState, per-chunk metrics)``; vmap it over keys."""
+    return make_trainer(config, env).train
+
+
+def summarize(chunk: dict) -> dict:
+    """Turn one chunk's summed counts into the paper's measures (NaN where no episode ended)."""
+    episodes = chunk["episodes"]
+    safe = jnp.maximum(episodes, 1.0)
+    nan = jnp.nan
+    return {
+        "episodes": episodes,
+        "success_ratio": jnp.where(episodes > 0, chunk["successes"] / safe, nan),
+        "mean_episode_length": jnp.where(episodes > 0, chunk["length_sum"] / safe, nan),
+        "mean_extrinsic_return": jnp.where(episodes > 0, chunk["return_sum"] / safe, nan),
+        **{k: chunk[k] for k in ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm")},
+    }

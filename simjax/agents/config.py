@@ -1,0 +1,75 @@
+"""The one typed configuration of a training run; the command line is generated from it.
+
+Defaults follow the paper's LSTM-A3C (appendix A.5 and table B.2): Adam with learning rate
+1e-4, value-loss weight 0.5, entropy weight 0.01, 20-step rollouts, discount 0.99. A3C's 16
+asynchronous actors become ``num_envs`` synchronous environments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+ALGOS = ("a2c",)
+
+
+def _f(default, help):
+    return dataclasses.field(default=default, metadata={"help": help})
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    env: str = _f("maze-very-sparse", "task name (see simjax.envs.TASK_NAMES)")
+    algo: str = _f("a2c", "exploration method: " + ", ".join(ALGOS))
+    total_steps: int = _f(2_000_000, "agent steps per seed (each is 4 simulator tics)")
+    num_envs: int = _f(64, "synchronous environments per seed (N)")
+    rollout_len: int = _f(20, "steps per environment per update (T), n-step return horizon")
+    learning_rate: float = _f(1e-4, "Adam learning rate")
+    gamma: float = _f(0.99, "discount")
+    value_coef: float = _f(0.5, "weight of the value loss (mean squared n-step error)")
+    entropy_coef: float = _f(0.01, "weight of the policy entropy bonus")
+    max_grad_norm: float = _f(0.5, "global gradient-norm clip")
+    task_scale: float = _f(1.0, "scale of the extrinsic reward: r = task_scale * r_e + bonus")
+    seed: int = _f(0, "first seed; seeds are seed, seed+1, ...")
+    num_seeds: int = _f(1, "seeds trained together as one jax.vmap")
+    log_every: int = _f(50_000, "agent steps per seed between metric rows (rounded to updates)")
+
+    def __post_init__(self):
+        from simjax.envs import check_name  # envs know nothing of agents; the reverse is fine
+
+        check_name(self.env)
+        if self.algo not in ALGOS:
+            raise ValueError(f"unknown algo {self.algo!r}; known algos: {', '.join(ALGOS)}")
+        positive_ints = ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every")
+        for name in positive_ints:
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+        for name in ("learning_rate", "max_grad_norm"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("value_coef", "entropy_coef", "task_scale"):
+            value = getattr(self, name)
+            if not (value >= 0 and math.isfinite(value)):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value}")
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        if self.total_steps < self.steps_per_update:
+            raise ValueError(
+                f"total_steps ({self.total_steps}) is less than one update "
+                f"(num_envs * rollout_len = {self.steps_per_update})"
+            )
+
+    @property
+    def steps_per_update(self) -> int:
+        return self.num_envs * self.rollout_len
+
+    @property
+    def updates_per_log(self) -> int:
+        return max(1, round(self.log_every / self.steps_per_update))
+
+    @property
+    def num_logs(self) -> int:
+        """Metric rows in a run; the run trains num_logs * updates_per_log updates."""
+        return max(1, math.ceil(self.total_steps / (self.updates_per_log * self.steps_per_update)))

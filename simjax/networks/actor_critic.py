@@ -1,0 +1,75 @@
+"""The LSTM actor-critic of LSTM-A3C (paper appendix A.5).
+
+obs uint8 (42, 42, 3) -> conv 16 (3x3, s2) -> conv 32 (3x3, s2) -> fc 256 -> LSTM 256 ->
+{value (fc 1), policy logits (fc |A|)}. The module consumes whole time-major sequences
+(T, N, ...): the encoder runs once over all T*N frames (one large batch is what a CPU does
+well), then the LSTM is scanned over time, its carry zeroed wherever ``reset`` marks the first
+step of an episode. Acting is the same call with T = 1, so acting and learning share one path.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import chex
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+from simjax.networks.layers import PatchConv
+
+
+class Encoder(nn.Module):
+    """Frame embedding: conv 16 -> conv 32 (3x3, stride 2, ReLU) -> fc ``features`` (ReLU)."""
+
+    features: int = 256
+
+    @nn.compact
+    def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
+        x = obs.astype(jnp.float32) / 255.0
+        x = nn.relu(PatchConv(16, kernel=3, stride=2)(x))
+        x = nn.relu(PatchConv(32, kernel=3, stride=2)(x))
+        x = x.reshape(x.shape[:-3] + (-1,))
+        return nn.relu(nn.Dense(self.features)(x))
+
+
+class ResetLSTM(nn.Module):
+    """An LSTM scanned over time (axis 0) whose carry is zeroed where ``reset`` is true."""
+
+    features: int = 256
+
+    @functools.partial(
+        nn.scan, variable_broadcast="params", split_rngs={"params": False}, in_axes=0, out_axes=0
+    )
+    @nn.compact
+    def __call__(self, carry, inputs):
+        x, reset = inputs
+        carry = jax.tree.map(lambda c: jnp.where(reset[:, None], jnp.zeros_like(c), c), carry)
+        carry, h = nn.OptimizedLSTMCell(self.features)(carry, x)
+        return carry, h
+
+    @staticmethod
+    def initial_carry(batch: int, features: int = 256):
+        zeros = jnp.zeros((batch, features), jnp.float32)
+        return (zeros, zeros)
+
+
+class ActorCritic(nn.Module):
+    """``(carry, obs (T, N, H, W, C), reset (T, N)) -> (carry, logits (T, N, A), value (T, N))``."""
+
+    num_actions: int
+    hidden: int = 256
+    embed: int = 256
+
+    @nn.compact
+    def __call__(self, carry, obs: jnp.ndarray, reset: jnp.ndarray):
+        chex.assert_rank(obs, 5)
+        chex.assert_equal_shape_prefix([obs, reset], 2)
+        x = Encoder(self.embed)(obs)
+        carry, h = ResetLSTM(self.hidden)(carry, (x, reset))
+        logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
+        value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0))(h)[..., 0]
+        return carry, logits, value
+
+    def initial_carry(self, batch: int):
+        return ResetLSTM.initial_carry(batch, self.hidden)

@@ -1,0 +1,44 @@
+"""Learning curves from a run folder's metrics.csv (the paper's two measures)."""
+
+from __future__ import annotations
+
+import csv
+from collections import defaultdict
+from pathlib import Path
+
+
+def read_metrics(run_dir: Path) -> dict[int, dict[str, list[float]]]:
+    """metrics.csv as {seed: {column: values}}."""
+    path = Path(run_dir) / "metrics.csv"
+    if not path.exists():
+        raise FileNotFoundError(f"no metrics.csv in {run_dir}")
+    by_seed: dict[int, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            seed = int(float(row["seed"]))
+            for k, v in row.items():
+                by_seed[seed][k].append(float(v))
+    return by_seed
+
+
+def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    by_seed = read_metrics(run_dir)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for seed, cols in sorted(by_seed.items()):
+        steps = cols["env_steps"]
+        axes[0].plot(steps, cols["success_ratio"], label=f"seed {seed}")
+        axes[1].plot(steps, cols["mean_episode_length"], label=f"seed {seed}")
+    axes[0].set(xlabel="agent steps", ylabel="success ratio", ylim=(-0.02, 1.02))
+    axes[1].set(xlabel="agent steps", ylabel="mean episode length")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(Path(run_dir).name, fontsize=10)
+    fig.tight_layout()
+    out = Path(run_dir) / filename
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return out
