@@ -52,4 +52,4 @@ def make(name: str) -> MazeEnv:
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout"]
+__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "mywayhome_layout", "tiny_layout"]

@@ -1,0 +1,106 @@
+"""``make bench``: renderer and training-loop throughput, written to BENCHMARKS.md.
+
+Measures, each as the median of several calls of one compiled program (compile time apart):
+- the environment alone (Doom-like motion, 4 tics, plus one render per agent step, random
+  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second;
+- the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
+  agent steps per second, with XLA's own FLOP count per agent step and the share of the
+  machine's measured float32 matmul peak that gives.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+from bench_lib import time_call  # noqa: E402
+from simjax.agents import TrainConfig, make_trainer  # noqa: E402
+from simjax.envs import make  # noqa: E402
+
+
+def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
+    a = jax.random.normal(jax.random.PRNGKey(0), (n, n), jnp.float32)
+    _, med, _ = time_call(lambda x: x @ x, a, repeats=repeats)
+    return 2 * n**3 / med
+
+
+def bench_env(task: str, num_envs: int, steps: int = 64) -> dict:
+    env = make(task)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
+
+    def run(state, key):
+        def body(s, k):
+            s = jax.vmap(env.step)(s, jax.random.randint(k, (num_envs,), 0, env.action_size))
+            return s, None
+        return jax.lax.scan(body, state, jax.random.split(key, steps))[0]
+
+    compile_s, med, _ = time_call(run, state, jax.random.PRNGKey(1))
+    return {"envs": num_envs, "steps_per_s": num_envs * steps / med, "compile_s": compile_s}
+
+
+def bench_train(task: str, num_envs: int, updates: int = 8) -> dict:
+    config = TrainConfig(env=task, num_envs=num_envs, total_steps=num_envs * 20 * updates,
+                         log_every=num_envs * 20 * updates)
+    trainer = make_trainer(config)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    compile_s, med, _ = time_call(trainer.run_chunk, runner, repeats=3)
+    steps = config.updates_per_log * config.steps_per_update
+    # XLA counts a while-loop body once, so count one update's FLOPs and scale by the steps
+    one = TrainConfig(env=task, num_envs=num_envs, total_steps=num_envs * 20, log_every=num_envs * 20)
+    one_trainer = make_trainer(one)
+    cost = jax.jit(one_trainer.run_chunk).lower(runner).compile().cost_analysis()
+    cost = cost[0] if isinstance(cost, (list, tuple)) else cost
+    flops_per_step = float(cost.get("flops", float("nan"))) / one.steps_per_update
+    return {"envs": num_envs, "steps_per_s": steps / med, "compile_s": compile_s,
+            "flops_per_step": flops_per_step}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
+    parser.add_argument("--task", default="maze-dense")
+    args = parser.parse_args(argv)
+
+    started = time.time()
+    peak = matmul_peak()
+    envs = [bench_env(args.task, n) for n in (256, 1024, 4096)]
+    trains = [bench_train(args.task, n) for n in (32, 64)]
+    lines = [
+        f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
+        "",
+        f"Machine: {os.cpu_count()} cores, {platform.machine()}, jax {jax.__version__}; "
+        f"float32 2048x2048 matmul peak measured now: {peak / 1e9:.0f} GFLOP/s.",
+        "",
+        "| what | envs | agent steps/s | compile s | FLOPs / agent step | share of matmul peak |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for r in envs:
+        lines.append(f"| environment (motion + render) | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
+    for r in trains:
+        share = r["flops_per_step"] * r["steps_per_s"] / peak
+        lines.append(
+            f"| A2C training loop | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | "
+            f"{r['flops_per_step'] / 1e6:.1f} M | {100 * share:.0f}% |"
+        )
+    lines += ["", f"Command: `make bench` (`python experiments/bench.py`); took {time.time() - started:.0f} s.", ""]
+    text = "\n".join(lines)
+    print(text)
+    if args.out:
+        header = "" if args.out.exists() else "# Benchmarks\n\nEach section is one run of the command it names, on this project's 2-core CPU machine.\n\n"
+        with open(args.out, "a") as f:
+            f.write(header + text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

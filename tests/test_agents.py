@@ -1,0 +1,159 @@
+"""The A2C learner, the config and the command line."""
+
+import csv
+import json
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import serialization
+
+from simjax import train as cli
+from simjax.agents import TrainConfig, make_trainer, n_step_returns, summarize, total_reward
+from simjax.envs import make
+
+
+def test_n_step_returns_by_hand():
+    g = 0.5
+    rewards = jnp.array([[1.0], [0.0], [2.0], [0.0]])
+    dones = jnp.array([[0.0], [1.0], [0.0], [1.0]])
+    truncs = jnp.array([[0.0], [0.0], [0.0], [1.0]])  # step 1 terminates, step 3 is cut by time
+    values = jnp.array([[10.0], [20.0], [30.0], [40.0], [50.0]])  # V(o_0..o_4)
+    got = n_step_returns(rewards, dones, truncs, values, g)
+    # t=3: truncation bootstraps from V(o_3) = 40, never from the next episode's V(o_4) = 50
+    # t=2: 2 + .5 * 20;  t=1: termination, no bootstrap;  t=0: 1 + .5 * 0
+    np.testing.assert_allclose(np.asarray(got)[:, 0], [1.0, 0.0, 12.0, 20.0])
+    no_done = n_step_returns(rewards, jnp.zeros_like(dones), jnp.zeros_like(truncs), values, g)
+    np.testing.assert_allclose(np.asarray(no_done)[-1, 0], 0.0 + g * 50.0)  # bootstraps V(o_T)
+
+
+def test_reward_seam():
+    np.testing.assert_allclose(total_reward(2.0, jnp.array([1.0, 0.0]), jnp.array([0.5, 0.25])), [2.5, 0.25])
+
+
+@pytest.mark.parametrize("bad,match", [
+    (dict(env="maze-nope"), "known tasks"),
+    (dict(algo="ppo"), "known algos"),
+    (dict(learning_rate=-1e-4), "learning_rate"),
+    (dict(task_scale=-1.0), "task_scale"),
+    (dict(num_envs=0), "num_envs"),
+    (dict(gamma=1.5), "gamma"),
+    (dict(total_steps=10), "less than one update"),
+])
+def test_config_rejects_bad_values(bad, match):
+    with pytest.raises(ValueError, match=match):
+        TrainConfig(**bad)
+
+
+def test_cli_fails_before_compiling(capsys, monkeypatch):
+    monkeypatch.setattr(cli, "run", lambda *a, **k: pytest.fail("must not start a run"))
+    with pytest.raises(SystemExit) as err:
+        cli.main(["--env", "maze-nope"])
+    assert err.value.code == 2
+    assert "known tasks: maze-dense" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["--task-scale", "-1"])
+    assert "task_scale must be" in capsys.readouterr().err
+
+
+def test_cli_refuses_to_overwrite_a_run(tmp_path, capsys):
+    (tmp_path / "metrics.csv").write_text("env_steps\n")
+    with pytest.raises(SystemExit):
+        cli.parse_config(["--out", str(tmp_path)])
+    assert "already holds a run" in capsys.readouterr().err
+
+
+def test_cli_flags_cover_every_config_field():
+    config, _, _ = cli.parse_config(["--env", "maze-dense", "--num-envs", "8", "--learning-rate", "3e-4",
+                                     "--entropy-coef", "0.02", "--num-seeds", "2"])
+    assert (config.env, config.num_envs, config.learning_rate, config.entropy_coef, config.num_seeds) == (
+        "maze-dense", 8, 3e-4, 0.02, 2)
+
+
+def _tiny_config(**kw):
+    base = dict(env="maze-tiny", num_envs=8, rollout_len=5, total_steps=80, log_every=40, learning_rate=1e-3)
+    return TrainConfig(**{**base, **kw})
+
+
+def test_update_shapes_determinism_and_seeds_vmap():
+    config = _tiny_config()
+    trainer = make_trainer(config)
+    keys = jnp.stack([jax.random.PRNGKey(0), jax.random.PRNGKey(1)])
+    init = jax.jit(jax.vmap(trainer.init))
+    chunk = jax.jit(jax.vmap(trainer.run_chunk))
+    runner = init(keys)
+    chex.assert_shape(runner.env_state.obs, (2, 8, 42, 42, 3))
+    chex.assert_shape(runner.carry, ((2, 8, 256), (2, 8, 256)))
+    after, metrics = chunk(runner)
+    chex.assert_shape(list(metrics.values()), (2,))
+    chex.assert_tree_all_finite((after.params, metrics))
+    # parameters moved, the two seeds differ, and the same keys give bit-identical results
+    assert not np.allclose(jax.tree.leaves(after.params)[0], jax.tree.leaves(runner.params)[0])
+    leaf = np.asarray(jax.tree.leaves(after.params)[-1])
+    assert not np.allclose(leaf[0], leaf[1])
+    again, metrics2 = chunk(init(keys))
+    chex.assert_trees_all_equal(after.params, again.params)
+    chex.assert_trees_all_equal(metrics, metrics2)
+
+
+def random_policy_success(env_name, num_envs=64, steps=400, seed=0):
+    """Success ratio of the uniform random policy, measured on the same task."""
+    env = make(env_name)
+    step = jax.vmap(env.step)
+
+    def body(s, k):
+        s = step(s, jax.random.randint(k, (num_envs,), 0, env.action_size))
+        return s, (s.metrics["episode_done"], s.metrics["episode_success"])
+
+    s0 = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(seed), num_envs))
+    _, (done, success) = jax.jit(lambda s: jax.lax.scan(body, s, jax.random.split(jax.random.PRNGKey(seed + 1), steps)))(s0)
+    return float(jnp.sum(success * done) / jnp.sum(done))
+
+
+def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
+    """The whole pipeline through the command line's own run(): A2C beats the random policy."""
+    config = TrainConfig(env="maze-tiny", num_envs=32, total_steps=120_000, log_every=20_000, learning_rate=1e-3)
+    out = cli.run(config, tmp_path / "run", quiet=True)
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert len(rows) == config.num_logs == 6
+    assert [int(r["env_steps"]) for r in rows] == [20_480 * (i + 1) for i in range(6)]
+    random_success = random_policy_success("maze-tiny")
+    assert 0.05 < random_success < 0.4
+    final = np.mean([float(r["success_ratio"]) for r in rows[-2:]])
+    assert final > random_success + 0.35, (final, random_success)
+    assert float(rows[-1]["mean_episode_length"]) < float(rows[0]["mean_episode_length"]) - 10
+    # the run folder: config, checkpoint with the trained parameters, learning curve
+    saved = json.load(open(out / "config.json"))["config"]
+    assert saved["env"] == "maze-tiny" and saved["learning_rate"] == 1e-3
+    ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
+    assert ckpt["env_steps"] == 6 * 20_480 and ckpt["seeds"] == [0]
+    kernel = ckpt["params"]["params"]["Encoder_0"]["PatchConv_0"]["kernel"]
+    assert kernel.shape == (1, 3, 3, 3, 16)  # leading axis: seeds
+    assert (out / "curve.png").stat().st_size > 10_000
+
+
+def test_a_stopped_run_keeps_what_it_wrote(tmp_path, monkeypatch):
+    calls = []
+
+    def stop_after_first(self, *args):
+        calls.append(args)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli.Progress, "update", stop_after_first)
+    out = cli.run(_tiny_config(total_steps=400), tmp_path / "run")
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert len(calls) == 1 and len(rows) == 1 and int(rows[0]["env_steps"]) == 40
+    ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
+    assert ckpt["env_steps"] == 40
+    assert (out / "curve.png").exists() and not list(out.glob("*.tmp"))
+
+
+def test_summarize_reports_nan_without_episodes():
+    chunk = {k: jnp.float32(0.0) for k in ("episodes", "successes", "length_sum", "return_sum", "policy_loss",
+                                           "value_loss", "entropy", "value_mean", "grad_norm")}
+    assert np.isnan(summarize(chunk)["success_ratio"])
+    chunk.update(episodes=jnp.float32(4.0), successes=jnp.float32(1.0), length_sum=jnp.float32(100.0))
+    s = summarize(chunk)
+    assert float(s["success_ratio"]) == 0.25 and float(s["mean_episode_length"]) == 25.0

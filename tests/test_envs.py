@@ -1,0 +1,223 @@
+"""The renderer, motion and the maze tasks."""
+
+import math
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simjax.envs import TASK_NAMES, make, mywayhome_layout, mywayhome_map, tiny_layout
+from simjax.envs import motion, raycaster
+from simjax.envs.maze import MazeEnv, MazeTask
+
+
+def numpy_cast(rows, pos, heading, camera=raycaster.Camera()):
+    """Plain reference: general ray/segment intersection, one column and one wall at a time."""
+    fwd = np.array([math.cos(heading), math.sin(heading)])
+    right = np.array([math.sin(heading), -math.cos(heading)])
+    half = math.tan(math.radians(camera.fov_deg) / 2)
+    depths, walls = [], []
+    for c in range(camera.width):
+        d = fwd + ((2 * (c + 0.5) / camera.width - 1) * half) * right
+        best, best_i = np.inf, -1
+        for i, (x1, y1, x2, y2, _) in enumerate(rows):
+            a, e = np.array([x1, y1], float), np.array([x2 - x1, y2 - y1], float)
+            den = d[0] * e[1] - d[1] * e[0]
+            if abs(den) < 1e-12:
+                continue
+            q = a - pos
+            t = (q[0] * e[1] - q[1] * e[0]) / den
+            s = (q[0] * d[1] - q[1] * d[0]) / den
+            if t > 1e-4 and 0 <= s <= 1 and t < best:
+                best, best_i = t, i
+        depths.append(best)
+        walls.append(best_i)
+    return np.array(depths), np.array(walls)
+
+
+POSES = [((240.0, -176.0), 0.0), ((464.0, -300.0), 1.3), ((1040.0, -200.0), -1.5708),
+         ((575.4, -171.8), 2.7), ((871.5, 54.6), -2.2), ((700.0, -62.0), 0.8)]
+
+
+@pytest.mark.parametrize("pos,heading", POSES)
+def test_raycaster_matches_numpy_reference(pos, heading):
+    layout = mywayhome_layout()
+    depth, wall, u = jax.jit(raycaster.cast_rays)(layout.walls, jnp.array(pos), jnp.float32(heading))
+    ref_depth, ref_wall = numpy_cast(mywayhome_map.WALLS, np.array(pos), heading)
+    np.testing.assert_allclose(np.asarray(depth), ref_depth, rtol=1e-4, atol=1e-2)
+    # the same wall, except where two walls meet at the hit point (equal depth, a corner)
+    same = np.asarray(wall) == ref_wall
+    assert np.all(same | (np.abs(np.asarray(depth) - ref_depth) < 1e-2))
+    assert same.mean() > 0.9
+    # u is the distance from the wall's start to the hit point
+    rows = np.asarray(mywayhome_map.WALLS, float)
+    hit = np.array(pos) + np.asarray(depth)[:, None] * np.asarray(raycaster.ray_directions(jnp.float32(heading)))
+    np.testing.assert_allclose(np.asarray(u), np.linalg.norm(hit - rows[np.asarray(wall), :2], axis=1), atol=0.05)
+
+
+def test_render_shape_dtype_and_content():
+    env = make("maze-dense")
+    pose = motion.Pose(jnp.array([1040.0, -200.0]), jnp.float32(-math.pi / 2), jnp.zeros(2))
+    frame = jax.jit(env.render)(pose)
+    chex.assert_shape(frame, (42, 42, 3))
+    chex.assert_type(frame, jnp.uint8)
+    frame = np.asarray(frame)
+    # looking down the corridor at the goal: the vest's bright green is on screen...
+    green = (frame[..., 1] > 150) & (frame[..., 0] < 80) & (frame[..., 2] < 100)
+    assert green.sum() >= 4
+    # ...and gone when a wall stands between (same spot, facing away)
+    away = np.asarray(env.render(pose._replace(heading=jnp.float32(math.pi / 2))))
+    assert (((away[..., 1] > 150) & (away[..., 0] < 80) & (away[..., 2] < 100))).sum() == 0
+    # floor below the horizon, ceiling above, differently coloured
+    assert not np.array_equal(frame[0, 0], frame[-1, 0])
+
+
+def test_sprite_is_hidden_behind_nearer_walls():
+    # goal at (200, 64) in a room; a wall between the eye and the goal must hide it
+    rows = [(0, 0, 320, 0, 8), (320, 0, 320, 128, 7), (320, 128, 0, 128, 8), (0, 128, 0, 0, 0),
+            (120, 32, 120, 96, 2)]
+    walls = raycaster.Walls.from_rows(rows)
+    goal = jnp.array([200.0, 64.0])
+    seen = np.asarray(raycaster.render(walls, jnp.array([150.0, 64.0]), jnp.float32(0.0), goal))
+    hidden = np.asarray(raycaster.render(walls, jnp.array([60.0, 64.0]), jnp.float32(0.0), goal))
+    is_green = lambda f: ((f[..., 1] > 150) & (f[..., 0] < 80) & (f[..., 2] < 100)).sum()
+    assert is_green(seen) > 10 and is_green(hidden) == 0
+
+
+def test_textures_tell_walls_apart():
+    # the nine MyWayHome textures have distinct base colours
+    bases = {look[0] for look in raycaster.TEXTURE_LOOKS[:9]}
+    assert len(bases) == 9
+
+
+def test_walls_must_be_axis_aligned():
+    with pytest.raises(ValueError, match="axis-aligned"):
+        raycaster.Walls.from_rows([(0, 0, 10, 10, 0)])
+
+
+def _walk(env, key, actions):
+    """Step one env through ``actions``; return the stacked states."""
+    def body(s, a):
+        s = env.step(s, a)
+        return s, s
+    return jax.lax.scan(body, env.reset(key), actions)[1]
+
+
+def test_collision_never_through_walls():
+    env = MazeEnv(mywayhome_layout(), MazeTask("t", max_steps=10_000), auto_reset=False)
+    keys = jax.random.split(jax.random.PRNGKey(3), 16)
+    actions = jax.random.choice(jax.random.PRNGKey(4), 4, (16, 400), p=jnp.array([0.15, 0.15, 0.65, 0.05]))
+    states = jax.jit(jax.vmap(_walk, (None, 0, 0)), static_argnums=0)(env, keys, actions)
+    pos = np.asarray(states.pipeline_state.pose.pos).reshape(-1, 2)
+    boxes = np.asarray(env.layout.boxes)
+    r = env.motion_params.radius
+    overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
+               & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
+    assert not overlap.any()
+    xmin, ymin, xmax, ymax = mywayhome_map.BBOX
+    assert (pos[:, 0] > xmin).all() and (pos[:, 0] < xmax).all()
+    assert (pos[:, 1] > ymin).all() and (pos[:, 1] < ymax).all()
+    # and the agents did move a lot: this is not a test of standing still
+    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
+    assert travelled > 16 * 400 * 5
+
+
+def test_collision_slides_along_a_wall():
+    layout = tiny_layout()  # room 0..320 x 0..128
+    pose = motion.Pose(jnp.array([290.0, 30.0]), jnp.float32(math.pi / 4), jnp.zeros(2))
+    params = motion.MotionParams()
+    for _ in range(40):
+        pose = motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, params)
+    x, y = np.asarray(pose.pos)
+    assert x == pytest.approx(320 - params.radius, abs=9)  # pressed against the east wall
+    assert x <= 320 - params.radius
+    assert y > 30 + 60  # but kept moving north along it
+    assert y <= 128 - params.radius
+
+
+def test_walking_speed_is_doom_like():
+    layout = tiny_layout()
+    pose = motion.Pose(jnp.array([20.0, 64.0]), jnp.float32(0.0), jnp.zeros(2))
+    p = motion.MotionParams()
+    for _ in range(35):  # ~260 units: stays clear of the east wall
+        before, pose = pose, motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, p)
+    speed = float(pose.pos[0] - before.pos[0])
+    assert 7.8 < speed < 8.5  # "about 8 units per tic" (Doom: 0.78 thrust, 0.90625 friction)
+    turned = motion.tic(pose, jnp.int32(motion.TURN_LEFT), layout.boxes, p).heading - pose.heading
+    assert float(turned) == pytest.approx(math.radians(7.03), rel=1e-4)
+
+
+def test_reward_and_termination_at_goal():
+    env = MazeEnv(tiny_layout(), MazeTask("t", random_heading=False, heading=0.0, max_steps=50))
+    # spawn (40, 64) facing east, goal at (200, 64): walking forward reaches it
+    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((20,), motion.FORWARD))
+    reward, done = np.asarray(states.reward), np.asarray(states.done)
+    t = int(np.argmax(done))
+    assert done[t] == 1 and reward[t] == 1.0 and reward.sum() >= 1.0
+    assert reward[:t].sum() == 0 and states.info["truncation"][t] == 0
+    assert states.metrics["episode_success"][t] == 1 and states.metrics["episode_length"][t] == t + 1
+    assert states.metrics["episode_return"][t] == 1.0
+    # touch distance: the step that ended it has the box within reach of the goal item
+    assert 5 <= t <= 12
+    # auto-reset: the next state is a fresh episode at the spawn spot
+    np.testing.assert_allclose(np.asarray(states.pipeline_state.pose.pos[t]), [40.0, 64.0])
+    assert int(states.pipeline_state.steps[t]) == 0
+
+
+def test_truncation_at_525_steps():
+    env = make("maze-very-sparse")
+    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((530,), motion.NOOP))
+    done = np.asarray(states.done)
+    assert np.flatnonzero(done).tolist() == [524]  # the 525th step
+    assert states.info["truncation"][524] == 1 and states.reward.sum() == 0
+    assert states.metrics["episode_length"][524] == 525 and states.metrics["episode_success"][524] == 0
+
+
+def test_fixed_and_random_spawns():
+    sparse = jax.vmap(make("maze-sparse").reset)(jax.random.split(jax.random.PRNGKey(0), 8))
+    np.testing.assert_allclose(np.asarray(sparse.pipeline_state.pose.pos), [mywayhome_map.SPAWN_SPOTS[16]] * 8, rtol=1e-6)
+    very = make("maze-very-sparse").reset(jax.random.PRNGKey(1))
+    np.testing.assert_allclose(np.asarray(very.pipeline_state.pose.pos), mywayhome_map.PLAYER_START_XY)
+    dense = jax.vmap(make("maze-dense").reset)(jax.random.split(jax.random.PRNGKey(0), 64))
+    assert len({tuple(np.round(p, 2)) for p in np.asarray(dense.pipeline_state.pose.pos)}) > 8
+    assert np.unique(np.round(np.asarray(dense.pipeline_state.pose.heading), 3)).size > 32
+
+
+def test_fresh_spawn_after_auto_reset():
+    # 3-step episodes: every 3rd state is a new episode's start, drawn anew each time
+    env = MazeEnv(mywayhome_layout(), MazeTask("t", max_steps=3))
+    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(7), jnp.full((60,), motion.NOOP))
+    starts = np.asarray(states.pipeline_state.pose.heading)[np.asarray(states.done) > 0]
+    assert starts.size == 20
+    assert np.unique(np.round(starts, 4)).size == 20  # brax's AutoResetWrapper would give 1
+    spots = np.asarray(states.pipeline_state.pose.pos)[np.asarray(states.done) > 0]
+    known = np.asarray(list(mywayhome_map.SPAWN_SPOTS.values()))
+    assert np.all(np.min(np.abs(spots[:, None] - known[None]).sum(-1), axis=1) < 1e-3)
+
+
+def test_shapes_dtypes_and_determinism():
+    env = make("maze-dense")
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    reset = jax.jit(jax.vmap(env.reset))
+    step = jax.jit(jax.vmap(env.step))
+    s = reset(keys)
+    chex.assert_shape(s.obs, (4, 42, 42, 3))
+    chex.assert_type(s.obs, jnp.uint8)
+    chex.assert_shape([s.reward, s.done, s.info["truncation"]], (4,))
+    chex.assert_shape(s.pipeline_state.pose.pos, (4, 2))
+    s2 = step(s, jnp.array([0, 1, 2, 3]))
+    chex.assert_type([s2.reward, s2.done], jnp.float32)
+    chex.assert_tree_all_finite(s2.pipeline_state.pose)
+    again = step(reset(keys), jnp.array([0, 1, 2, 3]))
+    chex.assert_trees_all_equal(s2, again)
+    other = reset(jax.random.split(jax.random.PRNGKey(1), 4))
+    assert not np.array_equal(np.asarray(other.obs), np.asarray(s.obs))
+    assert env.observation_size == (42, 42, 3) and env.action_size == 4
+
+
+def test_unknown_task_lists_known_ones():
+    with pytest.raises(ValueError, match="known tasks: maze-dense"):
+        make("maze-nope")
+    assert {"maze-dense", "maze-sparse", "maze-very-sparse"} <= set(TASK_NAMES)

@@ -1,0 +1,60 @@
+"""Flax modules: shapes, the im2col convolution, the LSTM reset."""
+
+import chex
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simjax.networks import ActorCritic, Encoder
+from simjax.networks.layers import PatchConv
+
+
+@pytest.mark.parametrize("kernel,stride,padding,size", [(3, 2, "SAME", 42), (3, 2, "SAME", 21), (8, 4, "VALID", 42),
+                                                        (4, 2, "VALID", 10), (3, 1, "VALID", 4), (3, 1, "SAME", 7)])
+def test_patch_conv_matches_flax_conv(kernel, stride, padding, size):
+    x = jax.random.normal(jax.random.PRNGKey(0), (2, 3, size, size, 5))
+    ref = nn.Conv(7, (kernel, kernel), strides=(stride, stride), padding=padding)
+    params = ref.init(jax.random.PRNGKey(1), x)
+    mine = PatchConv(7, kernel, stride, padding)
+    chex.assert_trees_all_equal_shapes(mine.init(jax.random.PRNGKey(1), x), params)
+    np.testing.assert_allclose(mine.apply(params, x), ref.apply(params, x), atol=1e-5, rtol=1e-5)
+
+
+def test_encoder_and_actor_critic_shapes():
+    T, N, A = 5, 3, 4
+    obs = jax.random.randint(jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    reset = jnp.zeros((T, N), bool)
+    enc = Encoder()
+    emb = enc.apply(enc.init(jax.random.PRNGKey(0), obs), obs)
+    chex.assert_shape(emb, (T, N, 256))
+    net = ActorCritic(num_actions=A)
+    carry = net.initial_carry(N)
+    params = net.init(jax.random.PRNGKey(0), carry, obs, reset)
+    kernels = jax.tree.map(jnp.shape, params["params"])
+    assert kernels["Encoder_0"]["PatchConv_0"]["kernel"] == (3, 3, 3, 16)
+    assert kernels["Encoder_0"]["PatchConv_1"]["kernel"] == (3, 3, 16, 32)
+    assert kernels["Encoder_0"]["Dense_0"]["kernel"] == (11 * 11 * 32, 256)
+    carry2, logits, value = net.apply(params, carry, obs, reset)
+    chex.assert_shape(logits, (T, N, A))
+    chex.assert_shape(value, (T, N))
+    chex.assert_shape(carry2, ((N, 256), (N, 256)))
+    chex.assert_tree_all_finite((carry2, logits, value))
+
+
+def test_lstm_carry_is_reset_where_an_episode_starts():
+    T, N = 6, 2
+    obs = jax.random.randint(jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    net = ActorCritic(num_actions=4)
+    params = net.init(jax.random.PRNGKey(0), net.initial_carry(N), obs, jnp.zeros((T, N), bool))
+    noisy = jax.tree.map(lambda c: jax.random.normal(jax.random.PRNGKey(2), c.shape), net.initial_carry(N))
+    reset = jnp.zeros((T, N), bool).at[3, 0].set(True)  # env 0 starts a new episode at t=3
+    _, logits, _ = net.apply(params, noisy, obs, reset)
+    # env 0 from t=3 on must equal a run that starts fresh at t=3; env 1 must not
+    _, fresh, _ = net.apply(params, net.initial_carry(N), obs[3:], jnp.zeros((T - 3, N), bool))
+    np.testing.assert_allclose(logits[3:, 0], fresh[:, 0], atol=1e-6)
+    assert not np.allclose(logits[3:, 1], fresh[:, 1], atol=1e-6)
+    # and before the reset, env 0 still carried its (noisy) memory
+    _, from_zero, _ = net.apply(params, net.initial_carry(N), obs[:3], jnp.zeros((3, N), bool))
+    assert not np.allclose(logits[:3, 0], from_zero[:, 0], atol=1e-6)
