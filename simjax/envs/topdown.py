@@ -1,0 +1,46 @@
+"""Top-down drawing of a layout for people: walls in their texture's colour, spawns, goal, agent."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from simjax.envs import raycaster
+from simjax.envs.maze import Layout
+
+
+def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str | None = None):
+    """Draw ``layout`` on a matplotlib axis (made if not given) and return the axis.
+
+    ``pose`` is an optional (x, y, heading) drawn as an arrow; ``trajectory`` an optional
+    (K, 2) array of positions drawn as a line.
+    """
+    import matplotlib
+
+    if ax is None:
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        _, ax = plt.subplots(figsize=(6, 5))
+    start, end = np.asarray(layout.walls.start), np.asarray(layout.walls.end)
+    tex = np.asarray(layout.walls.texture)
+    for (x1, y1), (x2, y2), t in zip(start, end, tex):
+        ax.plot([x1, x2], [y1, y2], color=raycaster.TEXTURE_LOOKS[t][0], linewidth=3, solid_capstyle="butt")
+    spawns = np.asarray(layout.spawns)
+    ax.scatter(spawns[:, 0], spawns[:, 1], marker="x", color="tab:blue", s=25, label="spawn spots", zorder=3)
+    gx, gy = np.asarray(layout.goal)
+    ax.scatter([gx], [gy], marker="*", color="limegreen", edgecolor="black", s=220, label="goal", zorder=4)
+    if trajectory is not None:
+        traj = np.asarray(trajectory)
+        ax.plot(traj[:, 0], traj[:, 1], color="tab:red", linewidth=1, alpha=0.7, label="trajectory")
+    if pose is not None:
+        x, y, h = (float(v) for v in pose)
+        ax.arrow(x, y, 30 * math.cos(h), 30 * math.sin(h), width=6, color="tab:red", zorder=5)
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.legend(loc="lower right", fontsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    return ax
