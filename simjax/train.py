@@ -86,17 +86,19 @@ def _atomic_write(path: Path, data: bytes) -> None:
 class Progress:
     """A one-line progress bar on stderr (plain lines when stderr is not a terminal)."""
 
-    def __init__(self, total: int, quiet: bool):
+    def __init__(self, total: int, quiet: bool, num_seeds: int = 1):
         self.total, self.quiet, self.tty = total, quiet, sys.stderr.isatty()
+        self.num_seeds = num_seeds
 
     def update(self, done: int, steps_per_s: float, success: float, length: float):
+        """``done``/``total`` count agent steps per seed; ``steps_per_s`` counts all seeds'."""
         if self.quiet:
             return
         frac = done / self.total
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
-        eta = (self.total - done) / max(steps_per_s, 1e-9)
+        eta = (self.total - done) * self.num_seeds / max(steps_per_s, 1e-9)
         line = (
-            f"[{bar}] {done:,}/{self.total:,} steps | {steps_per_s:,.0f} steps/s | "
+            f"[{bar}] {done:,}/{self.total:,} steps per seed | {steps_per_s:,.0f} steps/s | "
             f"success {success:.2f} | ep len {length:.0f} | ETA {dt.timedelta(seconds=int(eta))}"
         )
         print(("\r" + line) if self.tty else line, end="" if self.tty else "\n", file=sys.stderr, flush=True)
@@ -135,11 +137,17 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
     seeds = [config.seed + i for i in range(config.num_seeds)]
     keys = jax.numpy.stack([jax.random.PRNGKey(s) for s in seeds])
     runner = jax.jit(jax.vmap(trainer.init))(keys)
-    chunk = jax.jit(jax.vmap(lambda r: (lambda r2, m: (r2, summarize(m)))(*trainer.run_chunk(r))), donate_argnums=0)
+
+    def chunk_and_summarize(r):
+        r, metrics = trainer.run_chunk(r)
+        return r, summarize(metrics)
+
+    # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
+    chunk = jax.jit(jax.vmap(chunk_and_summarize))
 
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
-    progress = Progress(total, quiet)
+    progress = Progress(total, quiet, config.num_seeds)
     start = time.perf_counter()
     done_steps = 0
     if not quiet:
@@ -151,24 +159,25 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
             writer.writerow(METRIC_COLUMNS)
             last = time.perf_counter()
             for _ in range(config.num_logs):
-                runner, metrics = chunk(runner)
+                next_runner, metrics = chunk(runner)
                 metrics = jax.device_get(metrics)
                 now = time.perf_counter()
-                done_steps += steps_per_chunk
+                steps = done_steps + steps_per_chunk
                 rate = steps_per_chunk * config.num_seeds / (now - last)
                 last = now
                 for i, seed in enumerate(seeds):
                     row = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
                     writer.writerow(
-                        [done_steps, seed] + [f"{row[c]:.6g}" for c in METRIC_COLUMNS[2:-2]]
+                        [steps, seed] + [f"{row[c]:.6g}" for c in METRIC_COLUMNS[2:-2]]
                         + [f"{rate:.1f}", f"{now - start:.1f}"]
                     )
                 f.flush()
                 os.fsync(f.fileno())
+                # the checkpoint always matches the last row on disk
+                runner, done_steps = next_runner, steps
                 progress.update(done_steps, rate, _mean(metrics["success_ratio"]), _mean(metrics["mean_episode_length"]))
     except KeyboardInterrupt:
-        progress.close()
-        print(f"stopped at {done_steps:,} steps; saving what the run has", file=sys.stderr)
+        print(f"\nstopped at {done_steps:,} steps; saving what the run has", file=sys.stderr)
     finally:
         progress.close()
         params = jax.device_get(runner.params)

@@ -157,3 +157,10 @@ def test_summarize_reports_nan_without_episodes():
     chunk.update(episodes=jnp.float32(4.0), successes=jnp.float32(1.0), length_sum=jnp.float32(100.0))
     s = summarize(chunk)
     assert float(s["success_ratio"]) == 0.25 and float(s["mean_episode_length"]) == 25.0
+
+
+def test_progress_eta_counts_every_seed(capsys):
+    # 500 of 1,000 steps per seed left, 2 seeds, 100 steps/s over both: 10 s to go
+    cli.Progress(1000, quiet=False, num_seeds=2).update(500, 100.0, 0.5, 300.0)
+    line = capsys.readouterr().err
+    assert "500/1,000 steps per seed" in line and "ETA 0:00:10" in line

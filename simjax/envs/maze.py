@@ -90,10 +90,6 @@ class MazeEnv(Env):
         return (self.camera.height, self.camera.width, 3)
 
     @property
-    def observation_shape(self):
-        return self.observation_size
-
-    @property
     def action_size(self) -> int:
         return self.num_actions
 
