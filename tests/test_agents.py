@@ -114,7 +114,7 @@ def random_policy_success(env_name, num_envs=64, steps=400, seed=0):
 
 def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
     """The whole pipeline through the command line's own run(): A2C beats the random policy."""
-    config = TrainConfig(env="maze-tiny", num_envs=32, total_steps=120_000, log_every=20_000, learning_rate=1e-3)
+    config = TrainConfig(env="maze-tiny", num_envs=32, total_steps=120_000, log_every=20_480, learning_rate=1e-3)
     out = cli.run(config, tmp_path / "run", quiet=True)
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert len(rows) == config.num_logs == 6

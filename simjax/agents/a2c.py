@@ -152,7 +152,7 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
         done = m["episode_done"]
         info = {
             **info,
-            "grad_norm": optax.global_norm(grads),
+            "grad_norm": optax.tree.norm(grads),
             "episodes": jnp.sum(done),
             "successes": jnp.sum(done * m["episode_success"]),
             "length_sum": jnp.sum(done * m["episode_length"]),
