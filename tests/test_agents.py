@@ -164,3 +164,14 @@ def test_progress_eta_counts_every_seed(capsys):
     cli.Progress(1000, quiet=False, num_seeds=2).update(500, 100.0, 0.5, 300.0)
     line = capsys.readouterr().err
     assert "500/1,000 steps per seed" in line and "ETA 0:00:10" in line
+
+
+@pytest.mark.parametrize("total,log_every", [(30_000, 25_000), (1_000_000, 25_000), (320, 25_000), (99_999, 7_000)])
+def test_run_length_is_close_to_what_was_asked(total, log_every):
+    c = TrainConfig(total_steps=total, log_every=log_every)
+    trained = c.num_logs * c.updates_per_log * c.steps_per_update
+    assert total <= trained < total + c.num_logs * c.steps_per_update
+    if total >= log_every:  # rows come about every log_every steps (a shorter run has one row)
+        assert abs(c.updates_per_log * c.steps_per_update - log_every) <= log_every / 2
+    else:
+        assert c.num_logs == 1

@@ -70,10 +70,17 @@ class TrainConfig:
         return self.num_envs * self.rollout_len
 
     @property
-    def updates_per_log(self) -> int:
-        return max(1, round(self.log_every / self.steps_per_update))
+    def num_updates(self) -> int:
+        return math.ceil(self.total_steps / self.steps_per_update)
 
     @property
     def num_logs(self) -> int:
-        """Metric rows in a run; the run trains num_logs * updates_per_log updates."""
-        return max(1, math.ceil(self.total_steps / (self.updates_per_log * self.steps_per_update)))
+        """Metric rows in a run (one compiled call of ``updates_per_log`` updates each)."""
+        target = max(1, round(self.log_every / self.steps_per_update))
+        return math.ceil(self.num_updates / target)
+
+    @property
+    def updates_per_log(self) -> int:
+        """Updates spread evenly over the rows: the run trains num_logs * updates_per_log
+        updates, at least ``total_steps`` agent steps and less than one update per row more."""
+        return math.ceil(self.num_updates / self.num_logs)
