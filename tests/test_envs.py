@@ -221,3 +221,19 @@ def test_unknown_task_lists_known_ones():
     with pytest.raises(ValueError, match="known tasks: maze-dense"):
         make("maze-nope")
     assert {"maze-dense", "maze-sparse", "maze-very-sparse"} <= set(TASK_NAMES)
+
+
+def test_topdown_drawing_shows_walls_goal_and_agent(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from simjax.envs.topdown import draw_topdown
+
+    layout = mywayhome_layout()
+    ax = draw_topdown(layout, pose=(240.0, -176.0, 0.0), trajectory=np.array([[240, -176], [300, -176]]))
+    assert len(ax.lines) == len(mywayhome_map.WALLS) + 1  # one line per wall, plus the trajectory
+    assert len(ax.patches) == 1  # the agent's arrow
+    offsets = np.concatenate([c.get_offsets() for c in ax.collections])
+    assert [1040.0, -352.0] in offsets.tolist() and len(offsets) == 17 + 1  # spawns + goal
+    ax.figure.savefig(tmp_path / "map.png")
+    assert (tmp_path / "map.png").stat().st_size > 5_000
