@@ -24,7 +24,7 @@ train: $(STAMP)
 	$(PY) -m simjax.train --env $(ENV) --algo $(ALGO) --total-steps $(STEPS) --num-seeds $(SEEDS) $(if $(OUT),--out $(OUT)) $(ARGS)
 
 test: $(STAMP)
-	$(PY) -m pytest tests
+	$(PY) tools/run_tests.py
 
 bench: $(STAMP)
 	$(PY) experiments/bench.py --out BENCHMARKS.md

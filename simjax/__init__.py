@@ -3,8 +3,9 @@
 Importing simjax configures the XLA:CPU runtime before any computation runs: XLA:CPU's
 multi-threaded Eigen pool and its asynchronous dispatch can each leave a vmapped training
 step waiting forever for its result (seen here: 2 hangs in 6 runs of the same program;
-0 in 16 with either setting changed; public reports: jax-ml/jax#25861, PyAutoFit#1530).
-Neither costs measurable speed here (training loop: 4,165 vs 4,265 agent steps/s).
+0 in 26 with them off; public reports: jax-ml/jax#25861, PyAutoFit#1530). Turning them off
+makes the hang rarer, not impossible (README, "Known problem"). Neither costs measurable
+speed here (training loop: 4,165 vs 4,265 agent steps/s).
 Set SIMJAX_KEEP_XLA_DEFAULTS=1 to leave both alone.
 """
 

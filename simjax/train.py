@@ -3,7 +3,8 @@
 Config in, run folder out:
     config.json       every setting of the run (TrainConfig) and the package versions
     metrics.csv       one row per seed per log interval, appended and flushed as training goes
-    checkpoint.msgpack  final parameters of every seed (also written when the run is stopped)
+    checkpoint.msgpack  parameters of every seed as of the last metrics row (rewritten, atomically,
+                      after each row, so a stopped or killed run keeps it)
     curve.png         success ratio and mean episode length against agent steps
 Every flag comes from ``TrainConfig``; bad values fail here, before anything compiles.
 A stopped run (Ctrl-C) keeps every row it wrote and still saves its checkpoint and curve.
@@ -145,6 +146,11 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
     chunk = jax.jit(jax.vmap(chunk_and_summarize))
 
+    def save_checkpoint(runner, steps):
+        state = {"params": serialization.to_state_dict(jax.device_get(runner.params)),
+                 "env_steps": steps, "seeds": seeds}
+        _atomic_write(out / "checkpoint.msgpack", serialization.msgpack_serialize(state))
+
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, config.num_seeds)
@@ -173,19 +179,15 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
                     )
                 f.flush()
                 os.fsync(f.fileno())
-                # the checkpoint always matches the last row on disk
+                # the checkpoint always matches the last row on disk, even if the process is killed
                 runner, done_steps = next_runner, steps
+                save_checkpoint(runner, done_steps)
                 progress.update(done_steps, rate, _mean(metrics["success_ratio"]), _mean(metrics["mean_episode_length"]))
     except KeyboardInterrupt:
         print(f"\nstopped at {done_steps:,} steps; saving what the run has", file=sys.stderr)
     finally:
         progress.close()
-        params = jax.device_get(runner.params)
-        _atomic_write(
-            out / "checkpoint.msgpack",
-            serialization.msgpack_serialize({"params": serialization.to_state_dict(params),
-                                             "env_steps": done_steps, "seeds": seeds}),
-        )
+        save_checkpoint(runner, done_steps)
         if done_steps:
             plotting.plot_run(out)
     return out
