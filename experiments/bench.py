@@ -18,14 +18,27 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import statistics
 
-import jax  # noqa: E402
-import jax.numpy as jnp  # noqa: E402
+import jax
+import jax.numpy as jnp
 
-from bench_lib import time_call  # noqa: E402
-from simjax.agents import TrainConfig, make_trainer  # noqa: E402
-from simjax.envs import make  # noqa: E402
+from simjax.agents import TrainConfig, make_trainer
+from simjax.envs import make
+
+
+def time_call(fn, *args, repeats: int = 5):
+    """(compile seconds, median seconds per call, all timings) of a jitted ``fn(*args)``."""
+    t0 = time.perf_counter()
+    compiled = jax.jit(fn).lower(*args).compile()
+    compile_s = time.perf_counter() - t0
+    jax.block_until_ready(compiled(*args))  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(compiled(*args))
+        times.append(time.perf_counter() - t0)
+    return compile_s, statistics.median(times), times
 
 
 def matmul_peak(n: int = 2048, repeats: int = 5) -> float:

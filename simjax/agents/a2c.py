@@ -43,8 +43,7 @@ class RunnerState(NamedTuple):
     params: chex.ArrayTree
     opt_state: chex.ArrayTree
     env_state: chex.ArrayTree  # batched brax State
-    carry: tuple  # LSTM (c, h), each (N, hidden)
-    reset: jnp.ndarray  # (N,) bool: env_state.obs starts an episode
+    carry: tuple  # LSTM (c, h), each (N, hidden); reset where env_state.done marks a new episode
     key: jnp.ndarray
 
 
@@ -60,6 +59,15 @@ class Trainer(NamedTuple):
 def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) -> jnp.ndarray:
     """The one place where the reward is formed: r = task_scale * r_e + bonus."""
     return task_scale * extrinsic + bonus
+
+
+def starts_episode(env_state) -> jnp.ndarray:
+    """(N,) bool: the frame in ``env_state`` is an episode's first, so the LSTM carry resets.
+
+    The auto-resetting env marks the step that ended an episode with ``done``, and returns the
+    next episode's first frame with it. (After ``reset`` done is 0, but the carry is zero then.)
+    """
+    return env_state.done > 0
 
 
 def n_step_returns(rewards, dones, truncations, values, gamma: float):
@@ -113,13 +121,13 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
         k_net, k_env, k_run = jax.random.split(key, 3)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, N))
         carry = network.initial_carry(N)
-        reset = jnp.ones((N,), bool)
-        params = network.init(k_net, carry, env_state.obs[None], reset[None])
-        return RunnerState(params, tx.init(params), env_state, carry, reset, k_run)
+        params = network.init(k_net, carry, env_state.obs[None], starts_episode(env_state)[None])
+        return RunnerState(params, tx.init(params), env_state, carry, k_run)
 
     def rollout(runner: RunnerState):
         def env_step(state, key):
-            env_state, carry, reset = state
+            env_state, carry = state
+            reset = starts_episode(env_state)
             carry, logits, _ = network.apply(runner.params, carry, env_state.obs[None], reset[None])
             action = jax.random.categorical(key, logits[0]).astype(jnp.int32)
             next_state = jax.vmap(env.step)(env_state, action)
@@ -132,20 +140,18 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
                 truncation=next_state.info["truncation"],
                 metrics=next_state.metrics,
             )
-            return (next_state, carry, next_state.done > 0), tr
+            return (next_state, carry), tr
 
         key, sub = jax.random.split(runner.key)
-        (env_state, carry, reset), traj = jax.lax.scan(
-            env_step, (runner.env_state, runner.carry, runner.reset), jax.random.split(sub, T)
-        )
-        return env_state, carry, reset, key, traj
+        (env_state, carry), traj = jax.lax.scan(env_step, (runner.env_state, runner.carry), jax.random.split(sub, T))
+        return env_state, carry, key, traj
 
     def update(runner: RunnerState, _):
-        env_state, carry, reset, key, traj = rollout(runner)
+        env_state, carry, key, traj = rollout(runner)
         chex.assert_shape(traj.obs, (T, N) + tuple(env.observation_size))
         bonus = jnp.zeros_like(traj.reward)  # novelty models plug in here (issue 3)
         grad_fn = jax.grad(a2c_loss, has_aux=True)
-        grads, info = grad_fn(runner.params, network, runner.carry, traj, env_state.obs, reset, bonus, config)
+        grads, info = grad_fn(runner.params, network, runner.carry, traj, env_state.obs, starts_episode(env_state), bonus, config)
         updates, opt_state = tx.update(grads, runner.opt_state)
         params = optax.apply_updates(runner.params, updates)
         m = traj.metrics
@@ -158,7 +164,7 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
             "length_sum": jnp.sum(done * m["episode_length"]),
             "return_sum": jnp.sum(done * m["episode_return"]),
         }
-        return RunnerState(params, opt_state, env_state, carry, reset, key), info
+        return RunnerState(params, opt_state, env_state, carry, key), info
 
     def run_chunk(runner: RunnerState):
         """K = config.updates_per_log updates; episode counts summed, losses averaged."""
