@@ -27,11 +27,20 @@ from simjax.agents.config import TrainConfig
 METRIC_COLUMNS = (
     "env_steps", "seed", "success_ratio", "mean_episode_length", "mean_extrinsic_return",
     "episodes", "policy_loss", "value_loss", "entropy", "value_mean", "grad_norm",
-    "steps_per_s", "wall_s",
+    "bonus_mean", "forward_loss", "inverse_loss", "steps_per_s", "wall_s",
 )
 
 
-_FIELD_TYPES = {"int": int, "float": float, "str": str}
+def _parse_bool(text: str) -> bool:
+    lowered = text.strip().lower()
+    if lowered in ("1", "true", "yes", "on"):
+        return True
+    if lowered in ("0", "false", "no", "off"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
+
+
+_FIELD_TYPES = {"int": int, "float": float, "str": str, "bool": _parse_bool, "float | None": float}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -5,7 +5,7 @@ a rollout of T steps is a ``lax.scan``, and ``lax.scan`` over updates runs a who
 updates inside one compiled call. Seeds are a ``jax.vmap`` of the same functions over keys.
 
 Per update, with values V from the network and ``done``/``trunc`` from the environment:
-    r_t   = task_scale * r^e_t + bonus_t                         (the seam for novelty models)
+    r_t   = task_scale * r^e_t + bonus_t                         (bonus_t = beta * r+_t)
     G_T   = V(o_T)
     G_t   = r_t + gamma * ((1 - done_t) G_{t+1} + trunc_t V(o_t))
     loss  = -mean(log pi(a_t|o_t) (G_t - V(o_t))) + c_v mean((G_t - V(o_t))^2) - c_H mean(H[pi])
@@ -13,6 +13,14 @@ A termination (goal reached) stops the return there; a truncation (time limit) b
 The auto-resetting environment returns the new episode's first frame, not the truncated
 episode's last one, so the truncation bootstrap uses V(o_t), the value of the last frame the
 episode showed; with 525-step episodes and 0/1 rewards this one-step shift is immaterial.
+
+Novelty models (``simjax.novelty``) enter through one object, ``Novelty``: its bonus is added to
+the reward above and its loss to the objective, eq. (8) of the paper,
+    eta * loss_A2C + lambda * L_F + (1 - lambda) * L_I,
+minimised jointly over ``params = {"policy": ..., "novelty": ...}`` by one Adam. The two groups
+share no parameters, so each group's gradient is clipped to its own global norm: the policy's at
+eta * max_grad_norm, which makes its clipped, Adam-normalised step the same as plain A2C's (Adam
+is invariant to the scale eta up to its epsilon), and the novelty model's at max_grad_norm.
 """
 
 from __future__ import annotations
@@ -27,6 +35,8 @@ import optax
 from simjax.agents.config import TrainConfig
 from simjax.envs import make
 from simjax.networks import ActorCritic
+from simjax.novelty import METRICS as NOVELTY_METRICS
+from simjax.novelty import Novelty, make_novelty
 
 
 class Transition(NamedTuple):
@@ -40,10 +50,11 @@ class Transition(NamedTuple):
 
 
 class RunnerState(NamedTuple):
-    params: chex.ArrayTree
+    params: chex.ArrayTree  # {"policy": actor-critic, "novelty": novelty model ({} for a2c)}
     opt_state: chex.ArrayTree
     env_state: chex.ArrayTree  # batched brax State
     carry: tuple  # LSTM (c, h), each (N, hidden); reset where env_state.done marks a new episode
+    novelty: chex.ArrayTree  # NoveltyState: per-env frame/action memory, running statistics
     key: jnp.ndarray
 
 
@@ -54,6 +65,7 @@ class Trainer(NamedTuple):
     run_chunk: Callable
     train: Callable
     network: ActorCritic
+    novelty: Novelty
 
 
 def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) -> jnp.ndarray:
@@ -108,27 +120,36 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
     }
 
 
-def make_trainer(config: TrainConfig, env=None) -> Trainer:
+def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
+    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
     env = make(config.env) if env is None else env
     network = ActorCritic(num_actions=env.action_size)
-    tx = optax.chain(
-        optax.clip_by_global_norm(config.max_grad_norm),
-        optax.adam(config.learning_rate, eps=1e-5),
+    novelty = make_novelty(config, env.action_size) if novelty is None else novelty
+    eta = config.policy_weight
+
+    def group(clip):
+        return optax.chain(optax.clip_by_global_norm(clip), optax.adam(config.learning_rate, eps=1e-5))
+
+    tx = optax.multi_transform(
+        {"policy": group(eta * config.max_grad_norm), "novelty": group(config.max_grad_norm)},
+        {"policy": "policy", "novelty": "novelty"},
     )
     N, T = config.num_envs, config.rollout_len
 
     def init(key) -> RunnerState:
-        k_net, k_env, k_run = jax.random.split(key, 3)
+        k_net, k_env, k_nov, k_run = jax.random.split(key, 4)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, N))
         carry = network.initial_carry(N)
-        params = network.init(k_net, carry, env_state.obs[None], starts_episode(env_state)[None])
-        return RunnerState(params, tx.init(params), env_state, carry, k_run)
+        policy = network.init(k_net, carry, env_state.obs[None], starts_episode(env_state)[None])
+        novelty_params, novelty_state = novelty.init(k_nov, env_state.obs)
+        params = {"policy": policy, "novelty": novelty_params}
+        return RunnerState(params, tx.init(params), env_state, carry, novelty_state, k_run)
 
     def rollout(runner: RunnerState):
         def env_step(state, key):
             env_state, carry = state
             reset = starts_episode(env_state)
-            carry, logits, _ = network.apply(runner.params, carry, env_state.obs[None], reset[None])
+            carry, logits, _ = network.apply(runner.params["policy"], carry, env_state.obs[None], reset[None])
             action = jax.random.categorical(key, logits[0]).astype(jnp.int32)
             next_state = jax.vmap(env.step)(env_state, action)
             tr = Transition(
@@ -146,25 +167,32 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
         (env_state, carry), traj = jax.lax.scan(env_step, (runner.env_state, runner.carry), jax.random.split(sub, T))
         return env_state, carry, key, traj
 
+    def loss_fn(params, runner: RunnerState, traj: Transition, last_obs, last_reset):
+        novelty_loss, (bonus, novelty_info, novelty_state) = novelty.loss_and_bonus(
+            params["novelty"], runner.novelty, traj.obs, traj.reset, traj.action, last_obs, last_reset
+        )
+        rl_loss, info = a2c_loss(params["policy"], network, runner.carry, traj, last_obs, last_reset, bonus, config)
+        return eta * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
+
     def update(runner: RunnerState, _):
         env_state, carry, key, traj = rollout(runner)
         chex.assert_shape(traj.obs, (T, N) + tuple(env.observation_size))
-        bonus = jnp.zeros_like(traj.reward)  # novelty models plug in here (issue 3)
-        grad_fn = jax.grad(a2c_loss, has_aux=True)
-        grads, info = grad_fn(runner.params, network, runner.carry, traj, env_state.obs, starts_episode(env_state), bonus, config)
-        updates, opt_state = tx.update(grads, runner.opt_state)
+        grads, (info, novelty_state) = jax.grad(loss_fn, has_aux=True)(
+            runner.params, runner, traj, env_state.obs, starts_episode(env_state)
+        )
+        updates, opt_state = tx.update(grads, runner.opt_state, runner.params)
         params = optax.apply_updates(runner.params, updates)
         m = traj.metrics
         done = m["episode_done"]
         info = {
             **info,
-            "grad_norm": optax.tree.norm(grads),
+            "grad_norm": optax.tree.norm(grads["policy"]) / eta,  # of the A2C loss, as plain A2C logs it
             "episodes": jnp.sum(done),
             "successes": jnp.sum(done * m["episode_success"]),
             "length_sum": jnp.sum(done * m["episode_length"]),
             "return_sum": jnp.sum(done * m["episode_return"]),
         }
-        return RunnerState(params, opt_state, env_state, carry, key), info
+        return RunnerState(params, opt_state, env_state, carry, novelty_state, key), info
 
     def run_chunk(runner: RunnerState):
         """K = config.updates_per_log updates; episode counts summed, losses averaged."""
@@ -176,7 +204,7 @@ def make_trainer(config: TrainConfig, env=None) -> Trainer:
         runner = init(key)
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
-    return Trainer(init, run_chunk, train, network)
+    return Trainer(init, run_chunk, train, network, novelty)
 
 
 def make_train(config: TrainConfig, env=None):
@@ -195,4 +223,5 @@ def summarize(chunk: dict) -> dict:
         "mean_episode_length": jnp.where(episodes > 0, chunk["length_sum"] / safe, nan),
         "mean_extrinsic_return": jnp.where(episodes > 0, chunk["return_sum"] / safe, nan),
         **{k: chunk[k] for k in ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm")},
+        **{k: chunk[k] for k in NOVELTY_METRICS},
     }

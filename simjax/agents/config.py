@@ -14,7 +14,13 @@ from __future__ import annotations
 import dataclasses
 import math
 
-ALGOS = ("a2c",)
+ALGOS = ("a2c", "sim", "rnd", "icm")
+# paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method
+PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01}
+SIM_COMBINE = ("full", "itr", "concat")
+SIM_SEQUENCE = ("lstm", "ff")
+SIM_TARGET = ("rnd", "embed")
+MAX_WINDOW = 64  # H and L above this are almost surely typos (memory is H + L - 2 frames per env)
 
 
 def _f(default, help):
@@ -37,6 +43,19 @@ class TrainConfig:
     seed: int = _f(0, "first seed; seeds are seed, seed+1, ...")
     num_seeds: int = _f(1, "seeds trained together as one jax.vmap")
     log_every: int = _f(25_000, "agent steps per seed between metric rows (rounded to updates)")
+    # novelty models (ignored by a2c); eq. (8): lambda L_F + (1 - lambda) L_I - eta * RL objective
+    bonus_scale: float | None = _f(None, "beta, r = task_scale * r_e + beta * r+ (default: the paper's, "
+                                   "sim 0.001, rnd 0.01, icm 0.01)")
+    forward_weight: float = _f(0.2, "lambda, forward vs inverse loss weight (sim, icm)")
+    rl_weight: float = _f(0.1, "eta, weight of the RL loss against the novelty model's")
+    obs_len: int = _f(10, "SIM: H, frames in the observation window (>= 2)")
+    act_len: int = _f(3, "SIM: L, actions after the window, predicted open loop (>= 1)")
+    sim_combine: str = _f("full", "SIM: h = full [ho, ha, ho*ha] | itr ho*ha | concat [ho, ha]")
+    sim_sequence: str = _f("lstm", "SIM: lstm (two LSTMs) | ff (SIM-no-Seq: fc over stacked windows)")
+    sim_target: str = _f("rnd", "SIM: rnd (fixed random target) | embed (SIM-no-RND: f_e(o_t))")
+    sim_inverse: bool = _f(True, "SIM: train the inverse head (false: inverse loss off)")
+    obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
+    bonus_norm: bool = _f(False, "divide the novelty error by a running std of its discounted sum")
 
     def __post_init__(self):
         from simjax.envs import check_name  # envs know nothing of agents; the reverse is fine
@@ -44,6 +63,19 @@ class TrainConfig:
         check_name(self.env)
         if self.algo not in ALGOS:
             raise ValueError(f"unknown algo {self.algo!r}; known algos: {', '.join(ALGOS)}")
+        if self.bonus_scale is None:
+            object.__setattr__(self, "bonus_scale", PAPER_BONUS_SCALE[self.algo])
+        for name, allowed in (("sim_combine", SIM_COMBINE), ("sim_sequence", SIM_SEQUENCE), ("sim_target", SIM_TARGET)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} must be one of {', '.join(allowed)}; got {getattr(self, name)!r}")
+        if not 2 <= self.obs_len <= MAX_WINDOW:
+            raise ValueError(f"obs_len (H) must lie in [2, {MAX_WINDOW}], got {self.obs_len}")
+        if not 1 <= self.act_len <= MAX_WINDOW:
+            raise ValueError(f"act_len (L) must lie in [1, {MAX_WINDOW}], got {self.act_len}")
+        if not 0.0 <= self.forward_weight <= 1.0:
+            raise ValueError(f"forward_weight (lambda) must lie in [0, 1], got {self.forward_weight}")
+        if not (self.rl_weight > 0 and math.isfinite(self.rl_weight)):
+            raise ValueError(f"rl_weight (eta) must be a finite number > 0, got {self.rl_weight}")
         positive_ints = ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every")
         for name in positive_ints:
             if getattr(self, name) < 1:
@@ -51,7 +83,7 @@ class TrainConfig:
         for name in ("learning_rate", "max_grad_norm"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("value_coef", "entropy_coef", "task_scale"):
+        for name in ("value_coef", "entropy_coef", "task_scale", "bonus_scale"):
             value = getattr(self, name)
             if not (value >= 0 and math.isfinite(value)):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value}")
@@ -64,6 +96,11 @@ class TrainConfig:
                 f"total_steps ({self.total_steps}) is less than one update "
                 f"(num_envs * rollout_len = {self.steps_per_update})"
             )
+
+    @property
+    def policy_weight(self) -> float:
+        """eta where a novelty model shares the objective; plain A2C's loss is the RL loss alone."""
+        return 1.0 if self.algo == "a2c" else self.rl_weight
 
     @property
     def steps_per_update(self) -> int:

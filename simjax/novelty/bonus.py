@@ -1,0 +1,88 @@
+"""``Novelty``: the one object the learner is handed. It knows nothing of the learner either.
+
+    params, state = novelty.init(key, obs)                      obs: (N, h, w, c), the first frames
+    loss, (bonus, metrics, state) = novelty.loss_and_bonus(params, state, obs, reset, actions,
+                                                           last_obs, last_reset)
+``bonus`` (T, N) is r+ for each rollout transition, already scaled by beta and free of
+gradients; ``loss`` is lambda * L_F + (1 - lambda) * L_I of eq. (8), to be added to eta times
+the RL loss. ``state`` carries each environment's last frames and actions across rollouts and
+the running statistics of the two normalisations:
+
+* ``obs_norm`` (default on): the novelty networks see frames normalised per pixel by a running
+  mean and std, clipped to [-5, 5], as in RND. A random target on raw pixels mostly encodes
+  brightness, which barely changes in a maze; normalised, its features differ between places.
+  ICM ignores it (its own preprocessing is grey / 255).
+* ``bonus_norm`` (default off): divide the error by a running std of its discounted sum per
+  environment, as in RND. Off by default because the paper's beta (0.001 for SIM, 0.01 for
+  ICM and RND) scales unnormalised errors; with it on, beta is the scale of a unit-std bonus.
+With no model (``algo=a2c``) the bonus is zero, the loss is zero and the params are empty.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from simjax.novelty.base import (
+    Memory,
+    RunningMeanStd,
+    build_timeline,
+    discounted_filter,
+    init_memory,
+    normalize_frames,
+)
+
+METRICS = ("bonus_mean", "forward_loss", "inverse_loss")
+
+
+class NoveltyState(NamedTuple):
+    memory: Memory
+    obs_stats: RunningMeanStd  # per pixel, (h, w, c)
+    ret_stats: RunningMeanStd  # scalar, of the discounted error sums
+    ret_running: jnp.ndarray  # (N,) discounted error sum per environment
+
+
+@dataclasses.dataclass(frozen=True)
+class Novelty:
+    model: Any = None  # SIM, RND, ICM (``models``) or None for no bonus
+    bonus_scale: float = 0.0  # beta
+    gamma: float = 0.99  # discount of the bonus normaliser's running return
+    obs_norm: bool = True
+    bonus_norm: bool = False
+
+    def init(self, key, obs: jnp.ndarray):
+        n = obs.shape[0]
+        state = NoveltyState(
+            memory=init_memory(self.model.history if self.model else 0, n, obs.shape[1:]),
+            obs_stats=RunningMeanStd.create(obs.shape[1:]),
+            ret_stats=RunningMeanStd.create(()),
+            ret_running=jnp.zeros((n,), jnp.float32),
+        )
+        if self.model is None:
+            return {}, state
+        zeros = jnp.zeros((n,), bool)
+        tl, _ = build_timeline(state.memory, obs[None], zeros[None], jnp.zeros((1, n), jnp.int32), obs, zeros)
+        return self.model.init(key, tl, self._frames(tl, state.obs_stats.update(obs))), state
+
+    def _frames(self, tl, obs_stats):
+        return normalize_frames(tl.frames, obs_stats if self.obs_norm else None)
+
+    def loss_and_bonus(self, params, state: NoveltyState, obs, reset, actions, last_obs, last_reset):
+        if self.model is None:
+            zero = jnp.zeros(())
+            return zero, (jnp.zeros(actions.shape, jnp.float32), {k: zero for k in METRICS}, state)
+        tl, memory = build_timeline(state.memory, obs, reset, actions, last_obs, last_reset)
+        obs_stats = state.obs_stats.update(obs) if self.obs_norm else state.obs_stats
+        error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats))
+        error = jax.lax.stop_gradient(error) * scored
+        ret_stats, ret_running = state.ret_stats, state.ret_running
+        if self.bonus_norm:
+            ret_running, returns = discounted_filter(ret_running, error, self.gamma)
+            ret_stats = ret_stats.update(returns)
+            error = error / jnp.sqrt(ret_stats.var + 1e-8)
+        bonus = self.bonus_scale * error
+        metrics = {**metrics, "bonus_mean": jnp.mean(bonus)}
+        return loss, (bonus, metrics, NoveltyState(memory, obs_stats, ret_stats, ret_running))
