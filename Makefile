@@ -11,6 +11,7 @@ STEPS  ?= 2000000
 SEEDS  ?= 1
 OUT    ?=
 ARGS   ?=
+RESUME ?=
 
 .PHONY: train test bench clean-venv
 
@@ -20,8 +21,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# make train RESUME=runs/FOLDER continues a stopped run from its checkpoint
 train: $(STAMP)
+ifneq ($(RESUME),)
+	$(PY) -m simjax.train --resume $(RESUME)
+else
 	$(PY) -m simjax.train --env $(ENV) --algo $(ALGO) --total-steps $(STEPS) --num-seeds $(SEEDS) $(if $(OUT),--out $(OUT)) $(ARGS)
+endif
 
 test: $(STAMP)
 	$(PY) tools/run_tests.py

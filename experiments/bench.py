@@ -5,7 +5,10 @@ Measures, each as the median of several calls of one compiled program (compile t
   actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second;
 - the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
   agent steps per second, with XLA's own FLOP count per agent step and the share of the
-  machine's measured float32 matmul peak that gives.
+  machine's measured float32 matmul peak that gives;
+- the same loop with each novelty model (SIM at H=10, L=3, the paper's sizes; RND; ICM), with
+  the novelty model's FLOPs added, and where the time of one update goes: the novelty model's
+  forward+backward on one rollout, timed alone, against the whole update.
 """
 
 from __future__ import annotations
@@ -84,8 +87,9 @@ def flops_per_agent_step(trainer, runner, config) -> float:
         _, logits, value = net.apply(params, carry, obs, reset)
         return logits.sum() + value.sum()
 
-    fwd = _xla_flops(forward, runner.params) / config.num_envs
-    fwd_bwd = _xla_flops(jax.grad(forward), runner.params) / config.num_envs
+    policy = runner.params["policy"]
+    fwd = _xla_flops(forward, policy) / config.num_envs
+    fwd_bwd = _xla_flops(jax.grad(forward), policy) / config.num_envs
     return fwd + fwd_bwd * (config.rollout_len + 1) / config.rollout_len
 
 
@@ -100,6 +104,51 @@ def bench_train(task: str, num_envs: int, updates: int = 8) -> dict:
             "flops_per_step": flops_per_agent_step(trainer, runner, config)}
 
 
+def _lstm_step_flops(batch: int, inputs: int, hidden: int) -> float:
+    """Forward FLOPs of one LSTM step (4 gates, matmuls only)."""
+    return 2.0 * batch * (inputs + hidden) * 4 * hidden
+
+
+def novelty_flops_per_agent_step(trainer, runner, config, batch) -> float:
+    """XLA's FLOP count of the novelty model's forward+backward on one rollout, per agent step.
+
+    SIM's two LSTMs are scans, which XLA's cost analysis counts once; the H-1 and L-1 steps it
+    misses are added from the LSTM's matmul count (forward + backward = 3x forward).
+    """
+    novelty, params = trainer.novelty, runner.params["novelty"]
+
+    def loss(p):
+        return novelty.loss_and_bonus(p, runner.novelty, *batch)[0]
+
+    flops = _xla_flops(jax.grad(loss), params)
+    if config.algo == "sim" and config.sim_sequence == "lstm":
+        windows = config.rollout_len * config.num_envs
+        missed = (config.obs_len - 1) * _lstm_step_flops(windows, 256, 256)
+        missed += (config.act_len - 1) * _lstm_step_flops(windows, 128, 256)
+        flops += 3.0 * missed
+    return flops / config.steps_per_update
+
+
+def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8) -> dict:
+    config = TrainConfig(env=task, algo=algo, num_envs=num_envs, total_steps=num_envs * 20 * updates,
+                         log_every=num_envs * 20 * updates)
+    trainer = make_trainer(config)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    compile_s, med, _ = time_call(trainer.run_chunk, runner, repeats=3)
+    steps = config.updates_per_log * config.steps_per_update
+    # one rollout's worth of frames for the novelty model alone
+    T, N = config.rollout_len, num_envs
+    obs = jnp.broadcast_to(runner.env_state.obs, (T,) + runner.env_state.obs.shape)
+    actions = jax.random.randint(jax.random.PRNGKey(1), (T, N), 0, 4)
+    batch = (obs, jnp.zeros((T, N), bool), actions, runner.env_state.obs, jnp.zeros((N,), bool))
+    grad = jax.grad(lambda p: trainer.novelty.loss_and_bonus(p, runner.novelty, *batch)[0])
+    _, novelty_s, _ = time_call(grad, runner.params["novelty"])
+    a2c_flops = flops_per_agent_step(trainer, runner, config)
+    nov_flops = novelty_flops_per_agent_step(trainer, runner, config, batch)
+    return {"algo": algo, "envs": num_envs, "steps_per_s": steps / med, "compile_s": compile_s,
+            "flops_per_step": a2c_flops + nov_flops, "novelty_share": novelty_s / (med / config.updates_per_log)}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
@@ -110,6 +159,7 @@ def main(argv=None) -> int:
     peak = matmul_peak()
     envs = [bench_env(args.task, n) for n in (256, 1024, 4096)]
     trains = [bench_train(args.task, n) for n in (16, 32, 64)]
+    novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm")]
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
         "",
@@ -127,6 +177,16 @@ def main(argv=None) -> int:
             f"| A2C training loop | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | "
             f"{r['flops_per_step'] / 1e6:.1f} M | {100 * share:.0f}% |"
         )
+    for r in novelties:
+        share = r["flops_per_step"] * r["steps_per_s"] / peak
+        lines.append(
+            f"| {r['algo'].upper()} training loop | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | "
+            f"{r['flops_per_step'] / 1e6:.1f} M | {100 * share:.0f}% |"
+        )
+    lines += ["", "Where an update's time goes: the novelty model's forward+backward on one rollout, timed",
+              "alone, as a share of one whole update (rollout, both losses, gradients, Adam):", ""]
+    lines += [f"- {r['algo'].upper()} (N={r['envs']}, T=20{', H=10, L=3' if r['algo'] == 'sim' else ''}): "
+              f"{100 * r['novelty_share']:.0f}%" for r in novelties]
     lines += [
         "",
         "FLOPs per agent step: XLA's cost analysis of one network step forward (acting) plus (T+1)/T",

@@ -28,13 +28,18 @@ def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
     import matplotlib.pyplot as plt
 
     by_seed = read_metrics(run_dir)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    with_bonus = any(max(cols.get("bonus_mean", [0.0])) > 0 for cols in by_seed.values())
+    fig, axes = plt.subplots(1, 3 if with_bonus else 2, figsize=(15 if with_bonus else 10, 3.6))
     for seed, cols in sorted(by_seed.items()):
         steps = cols["env_steps"]
         axes[0].plot(steps, cols["success_ratio"], label=f"seed {seed}")
         axes[1].plot(steps, cols["mean_episode_length"], label=f"seed {seed}")
+        if with_bonus:
+            axes[2].plot(steps, cols["bonus_mean"], label=f"seed {seed}")
     axes[0].set(xlabel="agent steps", ylabel="success ratio", ylim=(-0.02, 1.02))
     axes[1].set(xlabel="agent steps", ylabel="mean episode length")
+    if with_bonus:
+        axes[2].set(xlabel="agent steps", ylabel="mean bonus per step (beta r+)", yscale="log")
     axes[0].legend(fontsize=8)
     fig.suptitle(Path(run_dir).name, fontsize=10)
     fig.tight_layout()

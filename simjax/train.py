@@ -58,6 +58,14 @@ def build_parser() -> argparse.ArgumentParser:
         )
     parser.add_argument("--out", type=Path, default=None, help="run folder (default: runs/ENV-ALGO-TIME)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--resume", type=Path, default=None,
+                        help="continue the run in this folder from its checkpoint (no other flags)")
+    parser.add_argument("--no-supervise", action="store_true",
+                        help="train in this process, without restarting it when XLA stalls")
+    parser.add_argument("--max-restarts", type=int, default=20, help="restarts after XLA stalls")
+    parser.add_argument("--stall-timeout", type=float, default=300.0,
+                        help="seconds the first compiled call may take before it counts as stalled")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return parser
 
 
@@ -127,7 +135,82 @@ def _mean(values) -> float:
     return float(finite.mean()) if finite.size else float("nan")
 
 
-def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
+STALLED = 75  # exit status of a worker whose XLA computation stopped making progress
+
+
+def load_config(run_dir: Path) -> TrainConfig:
+    path = Path(run_dir) / "config.json"
+    if not path.exists():
+        raise FileNotFoundError(f"{run_dir} is not a run folder (no config.json)")
+    return TrainConfig(**json.loads(path.read_text())["config"])
+
+
+def load_checkpoint(run_dir: Path, template=None) -> dict:
+    """The checkpoint as saved: {"runner": RunnerState of every seed (leading axis: seed),
+    "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types."""
+    from flax import serialization
+
+    ckpt = serialization.msgpack_restore((Path(run_dir) / "checkpoint.msgpack").read_bytes())
+    if template is not None:
+        ckpt["runner"] = serialization.from_state_dict(template, ckpt["runner"])
+    return ckpt
+
+
+class StallWatchdog:
+    """Ends the process with ``STALLED`` when one compiled call makes no progress for too long.
+
+    jaxlib 0.10.2 on XLA:CPU now and then never signals a finished computation (see
+    simjax/__init__.py); the process then waits forever and ignores Ctrl-C. Everything a run
+    has written is on disk by then, so the supervising ``main`` restarts the worker from the
+    last checkpoint. The first call of a process may take ``first_limit`` seconds; later ones
+    max(60 s, 4 x the slowest call so far).
+    """
+
+    def __init__(self, first_limit: float):
+        import threading
+
+        self.first_limit, self.slowest, self.started = first_limit, 0.0, None
+        self._lock = threading.Lock()
+        threading.Thread(target=self._watch, daemon=True).start()
+
+    def begin(self):
+        with self._lock:
+            self.started = time.perf_counter()
+
+    def end(self, record: bool = True):
+        with self._lock:
+            if record:
+                self.slowest = max(self.slowest, time.perf_counter() - self.started)
+            self.started = None
+
+    def limit(self) -> float:
+        return self.first_limit if self.slowest == 0.0 else max(60.0, 4.0 * self.slowest)
+
+    def _watch(self):
+        while True:
+            time.sleep(1.0)
+            with self._lock:
+                stuck = self.started is not None and time.perf_counter() - self.started > self.limit()
+            if stuck:
+                print(f"\nno progress for {self.limit():.0f} s (XLA:CPU stall); exiting to resume "
+                      "from the last checkpoint", file=sys.stderr, flush=True)
+                os._exit(STALLED)
+
+
+def _rows_up_to(path: Path, steps: int) -> list[list[str]]:
+    """metrics.csv rows (header first) up to ``steps``: a row written after the last checkpoint
+    (the process died between the two writes) is dropped, its update will be rerun."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows or tuple(rows[0]) != METRIC_COLUMNS:
+        raise ValueError(f"{path} does not have the columns this version writes")
+    return [rows[0]] + [r for r in rows[1:] if int(r[0]) <= steps]
+
+
+def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
+        stall_limit: float | None = None) -> Path:
+    """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
+    (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``."""
     import jax
     import numpy as np
     from flax import serialization
@@ -138,7 +221,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
     enable_compilation_cache()
     out.mkdir(parents=True, exist_ok=True)
     versions = {m: __import__(m).__version__ for m in ("jax", "flax", "optax", "brax")}
-    _atomic_write(
+    _atomic_write(  # on resume this is the config read from it, with this process's versions
         out / "config.json",
         json.dumps({"config": dataclasses.asdict(config), "versions": versions}, indent=2).encode(),
     )
@@ -146,7 +229,19 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
     trainer = make_trainer(config)
     seeds = [config.seed + i for i in range(config.num_seeds)]
     keys = jax.numpy.stack([jax.random.PRNGKey(s) for s in seeds])
-    runner = jax.jit(jax.vmap(trainer.init))(keys)
+    init = jax.vmap(trainer.init)
+    done_steps, wall_before = 0, 0.0
+    rows = [list(METRIC_COLUMNS)]
+    watchdog = StallWatchdog(stall_limit) if stall_limit else None
+    if watchdog:
+        watchdog.begin()
+    if resume and (out / "checkpoint.msgpack").exists():
+        ckpt = load_checkpoint(out, jax.eval_shape(init, keys))
+        runner, done_steps = jax.device_put(ckpt["runner"]), int(ckpt["env_steps"])
+        rows = _rows_up_to(out / "metrics.csv", done_steps)
+        wall_before = float(rows[-1][-1]) if len(rows) > 1 else 0.0
+    else:
+        runner = jax.jit(init)(keys)
 
     def chunk_and_summarize(r):
         r, metrics = trainer.run_chunk(r)
@@ -156,26 +251,33 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
     chunk = jax.jit(jax.vmap(chunk_and_summarize))
 
     def save_checkpoint(runner, steps):
-        state = {"params": serialization.to_state_dict(jax.device_get(runner.params)),
-                 "env_steps": steps, "seeds": seeds}
+        state = {"runner": serialization.to_state_dict(jax.device_get(runner)), "env_steps": steps, "seeds": seeds}
         _atomic_write(out / "checkpoint.msgpack", serialization.msgpack_serialize(state))
 
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, config.num_seeds)
-    start = time.perf_counter()
-    done_steps = 0
     if not quiet:
-        print(f"compiling {config.algo} on {config.env} ({config.num_seeds} seed(s), "
+        what = f"resuming at {done_steps:,} steps" if done_steps else "compiling"
+        print(f"{what}: {config.algo} on {config.env} ({config.num_seeds} seed(s), "
               f"{config.num_envs} envs each); run folder {out}", file=sys.stderr, flush=True)
+    save_checkpoint(runner, done_steps)
+    if watchdog:
+        watchdog.end(record=False)
+    compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
+    start = time.perf_counter() - wall_before
     try:
-        with open(out / "metrics.csv", "w", newline="") as f:
+        _atomic_write(out / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
+        with open(out / "metrics.csv", "a", newline="") as f:
             writer = csv.writer(f)
-            writer.writerow(METRIC_COLUMNS)
             last = time.perf_counter()
-            for _ in range(config.num_logs):
-                next_runner, metrics = chunk(runner)
+            while done_steps < total:
+                if watchdog:
+                    watchdog.begin()
+                next_runner, metrics = compiled(runner)
                 metrics = jax.device_get(metrics)
+                if watchdog:
+                    watchdog.end()
                 now = time.perf_counter()
                 steps = done_steps + steps_per_chunk
                 rate = steps_per_chunk * config.num_seeds / (now - last)
@@ -194,19 +296,69 @@ def run(config: TrainConfig, out: Path, quiet: bool = False) -> Path:
                 progress.update(done_steps, rate, _mean(metrics["success_ratio"]), _mean(metrics["mean_episode_length"]))
     except KeyboardInterrupt:
         print(f"\nstopped at {done_steps:,} steps; saving what the run has", file=sys.stderr)
+        save_checkpoint(runner, done_steps)
     finally:
         progress.close()
-        save_checkpoint(runner, done_steps)
         if done_steps:
             plotting.plot_run(out)
     return out
 
 
+def supervise(out: Path, quiet: bool, max_restarts: int, cmd: list[str] | None = None) -> int:
+    """Run the worker (``--resume out --worker``) in a child process; restart it from the last
+    checkpoint each time it exits ``STALLED``. Ctrl-C reaches both; the worker saves and stops."""
+    import subprocess
+
+    if cmd is None:
+        cmd = [sys.executable, "-m", "simjax.train", "--resume", str(out), "--worker"] + (["--quiet"] if quiet else [])
+    for attempt in range(max_restarts + 1):
+        proc = subprocess.Popen(cmd)
+        try:
+            code = proc.wait()
+        except KeyboardInterrupt:
+            try:  # the worker got the same Ctrl-C and is saving; a stalled one cannot, so end it
+                code = proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                code = proc.wait()
+            return 130
+        if code != STALLED:
+            return code
+        print(f"restarting from the checkpoint in {out} ({attempt + 1} of {max_restarts})", file=sys.stderr, flush=True)
+    print(f"gave up after {max_restarts} restarts; resume with --resume {out}", file=sys.stderr)
+    return STALLED
+
+
 def main(argv=None) -> int:
-    config, out, quiet = parse_config(argv)
-    run(config, out, quiet)
-    print(f"run folder: {out}")
-    return 0
+    argv = sys.argv[1:] if argv is None else list(argv)
+    extra = argparse.ArgumentParser(add_help=False)
+    extra.add_argument("--resume", type=Path, default=None)
+    extra.add_argument("--worker", action="store_true")
+    extra.add_argument("--no-supervise", action="store_true")
+    extra.add_argument("--max-restarts", type=int, default=20)
+    extra.add_argument("--stall-timeout", type=float, default=300.0)
+    known, rest = extra.parse_known_args(argv)
+    parser = build_parser()
+    if known.resume is not None:
+        args = parser.parse_args(rest)
+        if any(a.startswith("--") and a != "--quiet" for a in rest):
+            parser.error("--resume continues a run with its own config.json; give no other flags")
+        try:
+            config = load_config(known.resume)
+        except (FileNotFoundError, ValueError, TypeError) as err:
+            parser.error(str(err))
+        out, quiet = known.resume, args.quiet
+    else:
+        config, out, quiet = parse_config(rest)
+    if known.worker or known.no_supervise:
+        run(config, out, quiet, resume=known.resume is not None,
+            stall_limit=known.stall_timeout if known.worker else None)
+        print(f"run folder: {out}")
+        return 0
+    if known.resume is None:  # write config.json here, so the worker resumes what was asked
+        out.mkdir(parents=True, exist_ok=True)
+        _atomic_write(out / "config.json", json.dumps({"config": dataclasses.asdict(config)}, indent=2).encode())
+    return supervise(out, quiet, known.max_restarts)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 import csv
 import json
+import sys
 
 import chex
 import jax
@@ -41,6 +42,14 @@ def test_reward_seam():
     (dict(num_envs=0), "num_envs"),
     (dict(gamma=1.5), "gamma"),
     (dict(total_steps=10), "less than one update"),
+    (dict(algo="sim", obs_len=1), "obs_len"),
+    (dict(algo="sim", act_len=0), "act_len"),
+    (dict(obs_len=65), "obs_len"),
+    (dict(bonus_scale=-0.1), "bonus_scale"),
+    (dict(sim_combine="sum"), "sim_combine"),
+    (dict(sim_target="pixels"), "sim_target"),
+    (dict(forward_weight=1.5), "forward_weight"),
+    (dict(rl_weight=0.0), "rl_weight"),
 ])
 def test_config_rejects_bad_values(bad, match):
     with pytest.raises(ValueError, match=match):
@@ -129,7 +138,7 @@ def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
     assert saved["env"] == "maze-tiny" and saved["learning_rate"] == 1e-3
     ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
     assert ckpt["env_steps"] == 6 * 20_480 and ckpt["seeds"] == [0]
-    kernel = ckpt["params"]["params"]["Encoder_0"]["PatchConv_0"]["kernel"]
+    kernel = ckpt["runner"]["params"]["policy"]["params"]["Encoder_0"]["PatchConv_0"]["kernel"]
     assert kernel.shape == (1, 3, 3, 3, 16)  # leading axis: seeds
     assert (out / "curve.png").stat().st_size > 10_000
 
@@ -152,7 +161,8 @@ def test_a_stopped_run_keeps_what_it_wrote(tmp_path, monkeypatch):
 
 def test_summarize_reports_nan_without_episodes():
     chunk = {k: jnp.float32(0.0) for k in ("episodes", "successes", "length_sum", "return_sum", "policy_loss",
-                                           "value_loss", "entropy", "value_mean", "grad_norm")}
+                                           "value_loss", "entropy", "value_mean", "grad_norm",
+                                           "bonus_mean", "forward_loss", "inverse_loss")}
     assert np.isnan(summarize(chunk)["success_ratio"])
     chunk.update(episodes=jnp.float32(4.0), successes=jnp.float32(1.0), length_sum=jnp.float32(100.0))
     s = summarize(chunk)
@@ -175,3 +185,72 @@ def test_run_length_is_close_to_what_was_asked(total, log_every):
         assert abs(c.updates_per_log * c.steps_per_update - log_every) <= log_every / 2
     else:
         assert c.num_logs == 1
+
+
+def test_bonus_scale_defaults_to_the_papers_per_method():
+    assert [TrainConfig(algo=a).bonus_scale for a in ("a2c", "sim", "rnd", "icm")] == [0.0, 0.001, 0.01, 0.01]
+    assert TrainConfig(algo="sim", bonus_scale=0.01).bonus_scale == 0.01
+    assert TrainConfig(algo="sim").policy_weight == 0.1 and TrainConfig(algo="a2c").policy_weight == 1.0
+
+
+def test_cli_novelty_flags_and_their_errors(capsys, monkeypatch):
+    monkeypatch.setattr(cli, "run", lambda *a, **k: pytest.fail("must not start a run"))
+    config, _, _ = cli.parse_config(["--algo", "sim", "--obs-len", "4", "--act-len", "1", "--sim-inverse", "false",
+                                     "--sim-combine", "itr", "--bonus-norm", "on"])
+    assert (config.obs_len, config.act_len, config.sim_inverse, config.sim_combine, config.bonus_norm) == (
+        4, 1, False, "itr", True)
+    for bad, message in ((["--algo", "sim", "--act-len", "0"], "act_len (L) must lie"),
+                         (["--sim-inverse", "maybe"], "expected true or false"),
+                         (["--bonus-scale", "-1"], "bonus_scale must be"),
+                         (["--resume", "/nonexistent/run"], "not a run folder")):
+        with pytest.raises(SystemExit) as err:
+            cli.main(bad)
+        assert err.value.code == 2
+        assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("algo", ["sim", "rnd", "icm"])
+def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
+    config = _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2)
+    trainer = make_trainer(config)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    after, metrics = jax.jit(trainer.run_chunk)(runner)
+    chex.assert_tree_all_finite((after.params, metrics))
+    before_p, after_p = runner.params, after.params
+    for part in ("policy", "novelty"):  # both trained by the one optimiser
+        moved = [not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(before_p[part]), jax.tree.leaves(after_p[part]))]
+        assert sum(moved) > len(moved) // 2, part
+    if "target" in before_p["novelty"]:
+        chex.assert_trees_all_equal(before_p["novelty"]["target"], after_p["novelty"]["target"])
+    assert float(metrics["bonus_mean"]) > 0.0 and float(metrics["forward_loss"]) > 0.0
+    assert bool(after.novelty.memory.valid.all())  # 8 steps filled the memory of every env
+
+
+def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
+    config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
+    whole = cli.run(config, tmp_path / "whole", quiet=True)
+    calls = []
+
+    def stop_after_first(self, *args):
+        calls.append(args)
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(cli.Progress, "update", stop_after_first)
+        cli.run(config, tmp_path / "parts", quiet=True)
+    assert len(list(csv.reader(open(tmp_path / "parts" / "metrics.csv")))) == 2  # header + 1 row
+    cli.run(cli.load_config(tmp_path / "parts"), tmp_path / "parts", quiet=True, resume=True)
+    same = [c for c in cli.METRIC_COLUMNS if c not in ("steps_per_s", "wall_s")]
+    rows = [list(csv.DictReader(open(tmp_path / d / "metrics.csv"))) for d in ("whole", "parts")]
+    assert len(rows[0]) == len(rows[1]) == 3
+    assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]]
+
+
+def test_supervisor_restarts_a_stalled_worker(tmp_path):
+    marker = tmp_path / "attempts"
+    script = (f"import pathlib, sys; p = pathlib.Path({str(marker)!r}); n = len(p.read_text()) if p.exists() else 0; "
+              f"p.write_text('x' * (n + 1)); sys.exit({cli.STALLED} if n < 2 else 0)")
+    assert cli.supervise(tmp_path, True, max_restarts=5, cmd=[sys.executable, "-c", script]) == 0
+    assert marker.read_text() == "xxx"  # stalled twice, then finished
+    marker.unlink()
+    assert cli.supervise(tmp_path, True, max_restarts=1, cmd=[sys.executable, "-c", script]) == cli.STALLED
