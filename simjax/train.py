@@ -304,15 +304,26 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     return out
 
 
-def supervise(out: Path, quiet: bool, max_restarts: int, cmd: list[str] | None = None) -> int:
+def _checkpoint_steps(out: Path) -> int:
+    try:
+        return int(load_checkpoint(out)["env_steps"])
+    except (FileNotFoundError, KeyError, ValueError):
+        return -1
+
+
+def supervise(out: Path, quiet: bool, max_restarts: int, stall_timeout: float = 300.0,
+              cmd: list[str] | None = None) -> int:
     """Run the worker (``--resume out --worker``) in a child process; restart it from the last
-    checkpoint each time it exits ``STALLED``. Ctrl-C reaches both; the worker saves and stops."""
+    checkpoint each time it exits ``STALLED``. A worker that stalls again without having added
+    a row gets twice the time for its first call (in case that call is just slow). Ctrl-C
+    reaches both processes; the worker saves and stops."""
     import subprocess
 
-    if cmd is None:
-        cmd = [sys.executable, "-m", "simjax.train", "--resume", str(out), "--worker"] + (["--quiet"] if quiet else [])
+    limit, steps = stall_timeout, _checkpoint_steps(out)
     for attempt in range(max_restarts + 1):
-        proc = subprocess.Popen(cmd)
+        worker = cmd or ([sys.executable, "-m", "simjax.train", "--resume", str(out), "--worker",
+                          "--stall-timeout", str(limit)] + (["--quiet"] if quiet else []))
+        proc = subprocess.Popen(worker)
         try:
             code = proc.wait()
         except KeyboardInterrupt:
@@ -324,6 +335,9 @@ def supervise(out: Path, quiet: bool, max_restarts: int, cmd: list[str] | None =
             return 130
         if code != STALLED:
             return code
+        now = _checkpoint_steps(out)
+        limit = limit * 2 if now == steps else stall_timeout
+        steps = now
         print(f"restarting from the checkpoint in {out} ({attempt + 1} of {max_restarts})", file=sys.stderr, flush=True)
     print(f"gave up after {max_restarts} restarts; resume with --resume {out}", file=sys.stderr)
     return STALLED
@@ -358,7 +372,7 @@ def main(argv=None) -> int:
     if known.resume is None:  # write config.json here, so the worker resumes what was asked
         out.mkdir(parents=True, exist_ok=True)
         _atomic_write(out / "config.json", json.dumps({"config": dataclasses.asdict(config)}, indent=2).encode())
-    return supervise(out, quiet, known.max_restarts)
+    return supervise(out, quiet, known.max_restarts, known.stall_timeout)
 
 
 if __name__ == "__main__":
