@@ -8,7 +8,7 @@ import optax
 import pytest
 
 from simjax.envs import make
-from simjax.novelty import ICM, RND, SIM, Novelty, RunningMeanStd, build_timeline, in_episode, init_memory
+from simjax.novelty import ICM, RND, SIM, Novelty, RunningMeanStd, build_timeline, init_memory
 from simjax.novelty.base import normalize_frames, shifted
 
 A = 4  # the maze tasks' action count
@@ -173,7 +173,6 @@ def test_losses_fall_on_a_fixed_batch_and_repeats_become_less_novel(name, frames
     seen, unseen = frames["seen"], frames["unseen"]
     novelty = _novelty(MODELS[name]())
     params, state = _init(novelty, seen)
-    _, (bonus_before, _, _) = novelty.loss_and_bonus(params, state, *unseen)
     trained, history = _fit(novelty, params, state, seen)
     first, last = history[0], history[-1]
     assert last["forward_loss"] < 0.5 * first["forward_loss"], (first, last)
@@ -188,7 +187,6 @@ def test_losses_fall_on_a_fixed_batch_and_repeats_become_less_novel(name, frames
     _, (bonus_seen, _, _) = novelty.loss_and_bonus(trained, state, *seen)
     _, (bonus_unseen, _, _) = novelty.loss_and_bonus(trained, state, *unseen)
     assert float(jnp.mean(bonus_seen)) < 0.5 * float(jnp.mean(bonus_unseen)), (bonus_seen.mean(), bonus_unseen.mean())
-    del bonus_before
 
 
 def test_frames_of_an_earlier_episode_never_change_the_new_episodes_scores(frames):
