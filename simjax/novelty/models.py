@@ -27,11 +27,6 @@ def half_squared_error(prediction, target):
     return 0.5 * jnp.sum(jnp.square(target - prediction), axis=-1)
 
 
-def _split(key):
-    k1, k2 = jax.random.split(key)
-    return k1, k2
-
-
 @dataclasses.dataclass(frozen=True)
 class RND:
     """Random network distillation (A.3): predict a fixed random network's output on o_{t+1}."""
@@ -40,7 +35,7 @@ class RND:
     history: int = 1
 
     def init(self, key, tl: Timeline, x):
-        k_t, k_p = _split(key)
+        k_t, k_p = jax.random.split(key)
         frames = x[tl.history + 1 :]
         return {"target": RNDTarget().init(k_t, frames), "predictor": RNDPredictor().init(k_p, frames)}
 
@@ -100,7 +95,7 @@ class SIM:
         return jnp.stack([shifted(tl.actions, m, t, k) for k in range(L + H - 1, L, -1)], axis=1)
 
     def init(self, key, tl: Timeline, x):
-        k_t, k_s = _split(key)
+        k_t, k_s = jax.random.split(key)
         frame, action, _ = self.masks(tl)
         params = {"sim": self.net().init(k_s, x, tl.actions, frame, action)}
         if self.target == "rnd":
