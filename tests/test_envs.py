@@ -79,7 +79,7 @@ def test_sprite_is_hidden_behind_nearer_walls():
     rows = [(0, 0, 320, 0, 8), (320, 0, 320, 128, 7), (320, 128, 0, 128, 8), (0, 128, 0, 0, 0),
             (120, 32, 120, 96, 2)]
     walls = raycaster.Walls.from_rows(rows)
-    goal = jnp.array([200.0, 64.0])
+    goal = raycaster.Sprites.single([200.0, 64.0])
     seen = np.asarray(raycaster.render(walls, jnp.array([150.0, 64.0]), jnp.float32(0.0), goal))
     hidden = np.asarray(raycaster.render(walls, jnp.array([60.0, 64.0]), jnp.float32(0.0), goal))
     is_green = lambda f: ((f[..., 1] > 150) & (f[..., 0] < 80) & (f[..., 2] < 100)).sum()
@@ -233,7 +233,7 @@ def test_topdown_drawing_shows_walls_goal_and_agent(tmp_path):
     ax = draw_topdown(layout, pose=(240.0, -176.0, 0.0), trajectory=np.array([[240, -176], [300, -176]]))
     assert len(ax.lines) == len(mywayhome_map.WALLS) + 1  # one line per wall, plus the trajectory
     assert len(ax.patches) == 1  # the agent's arrow
-    offsets = np.concatenate([c.get_offsets() for c in ax.collections])
-    assert [1040.0, -352.0] in offsets.tolist() and len(offsets) == 17 + 1  # spawns + goal
+    offsets = np.concatenate([c.get_offsets() for c in ax.collections]).tolist()
+    assert [1040.0, -352.0] in offsets and len(offsets) == 17 + 1  # spawns + goal
     ax.figure.savefig(tmp_path / "map.png")
     assert (tmp_path / "map.png").stat().st_size > 5_000

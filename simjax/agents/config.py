@@ -29,7 +29,7 @@ def _f(default, help):
 
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
-    env: str = _f("maze-very-sparse", "task name (see simjax.envs.TASK_NAMES)")
+    env: str = _f("maze-very-sparse", "task name (see simjax.envs.TASK_NAMES), or gymnax:NAME")
     algo: str = _f("a2c", "exploration method: " + ", ".join(ALGOS))
     total_steps: int = _f(2_000_000, "agent steps per seed (each is 4 simulator tics)")
     num_envs: int = _f(16, "synchronous environments per seed (N)")
@@ -96,6 +96,11 @@ class TrainConfig:
                 f"total_steps ({self.total_steps}) is less than one update "
                 f"(num_envs * rollout_len = {self.steps_per_update})"
             )
+        if self.algo != "a2c":  # can the novelty model read this task's observations?
+            from simjax.envs import make
+            from simjax.novelty import check_observation
+
+            check_observation(self, make(self.env).observation_size)
 
     @property
     def policy_weight(self) -> float:

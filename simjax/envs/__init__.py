@@ -7,6 +7,15 @@ MyWayHome (paper section 3.1, appendix B.1; spawn choices recorded in the README
   facing east;
 - ``maze-tiny``: one 320x128 room with the goal 160 units from a fixed spot, random heading,
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
+
+The paper's other two worlds (``simjax.envs.melon``, ``simjax.envs.explore_goals``):
+- ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
+  melon (+20, success); 525 steps, 3 actions;
+- ``explore-goals``: Explore Goal Locations Small, a new generated maze every episode, +10 per
+  goal reached, then a new start and goal; 1350 steps, 3 actions.
+
+Any gymnax environment: ``gymnax:NAME`` (``simjax.envs.gymnax_adapter``), e.g.
+``gymnax:CartPole-v1`` or ``gymnax:Breakout-MinAtar``.
 """
 
 from __future__ import annotations
@@ -14,18 +23,22 @@ from __future__ import annotations
 from typing import Callable
 
 from simjax.envs import mywayhome_map
-from simjax.envs.maze import Layout, MazeEnv, MazeTask
+from simjax.envs.explore_goals import ExploreGoalsEnv
+from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
+from simjax.envs.melon import MELON_TASK, melon_layout
+
+GYMNAX_PREFIX = "gymnax:"
 
 
 def mywayhome_layout(spawn_ids=None) -> Layout:
     ids = sorted(mywayhome_map.SPAWN_SPOTS) if spawn_ids is None else list(spawn_ids)
     spawn_xy = [mywayhome_map.SPAWN_SPOTS[i] for i in ids]
-    return Layout.build(mywayhome_map.WALLS, mywayhome_map.GOAL_XY, spawn_xy)
+    return Layout.build(mywayhome_map.WALLS, [goal_item(mywayhome_map.GOAL_XY)], spawn_xy)
 
 
 def tiny_layout() -> Layout:
     room = [(0, 0, 320, 0, 8), (320, 0, 320, 128, 7), (320, 128, 0, 128, 8), (0, 128, 0, 0, 0)]
-    return Layout.build(room, goal_xy=(200.0, 64.0), spawn_xy=[(40.0, 64.0)])
+    return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
 
 
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
@@ -35,21 +48,35 @@ _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
         mywayhome_layout([10]), MazeTask("maze-very-sparse", random_heading=False)
     ),
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
+    "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
+    "explore-goals": ExploreGoalsEnv,
 }
 
 TASK_NAMES = tuple(_REGISTRY)
 
 
 def check_name(name: str) -> None:
-    """Raise a ValueError naming the known tasks if ``name`` is not one of them."""
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown task {name!r}; known tasks: {', '.join(TASK_NAMES)}")
+    """Raise a ValueError naming the known tasks if ``name`` is not one of them (for
+    ``gymnax:NAME``, if gymnax is missing or does not know NAME)."""
+    if name.startswith(GYMNAX_PREFIX):
+        from simjax.envs.gymnax_adapter import check_gymnax_name
+
+        check_gymnax_name(name[len(GYMNAX_PREFIX):])
+    elif name not in _REGISTRY:
+        raise ValueError(
+            f"unknown task {name!r}; known tasks: {', '.join(TASK_NAMES)}, or gymnax:NAME for a gymnax environment"
+        )
 
 
-def make(name: str) -> MazeEnv:
-    """Build the task registered under ``name``."""
+def make(name: str):
+    """Build the task registered under ``name``, or the gymnax environment ``gymnax:NAME``."""
     check_name(name)
+    if name.startswith(GYMNAX_PREFIX):
+        from simjax.envs.gymnax_adapter import GymnaxEnv
+
+        return GymnaxEnv(name[len(GYMNAX_PREFIX):])
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "mywayhome_layout", "tiny_layout"]
+__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv",
+           "mywayhome_layout", "tiny_layout", "melon_layout"]

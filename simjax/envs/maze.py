@@ -1,10 +1,11 @@
 """First-person maze navigation as a brax ``Env``: MyWayHome tasks (paper section 3.1, B.1).
 
-An agent step repeats one of 4 actions {turn left, turn right, forward, no-op} for 4 tics of
-Doom-like motion (``simjax.envs.motion``) and renders one 42x42 RGB frame (``raycaster``).
-Touching the goal item gives ``goal_reward`` and ends the episode (termination); otherwise the
-episode is cut after ``max_steps`` agent steps (truncation, ``info['truncation'] == 1``, so a
-learner bootstraps there and not at a termination).
+An agent step repeats one of 4 actions {turn left, turn right, forward, no-op} (or the first 3,
+``MazeTask.num_actions``) for 4 tics of Doom-like motion (``simjax.envs.motion``) and renders
+one 42x42 RGB frame (``raycaster``). Items give their reward on the first touch in an episode
+and disappear; touching one that ``ends`` (the goal) ends the episode as a success
+(termination). Otherwise the episode is cut after ``max_steps`` agent steps (truncation,
+``info['truncation'] == 1``, so a learner bootstraps there and not at a termination).
 
 Auto-reset happens inside ``step`` (unlike brax's ``AutoResetWrapper``, which replays the first
 state it saw): a finished episode's next start is drawn from the state's own key, and the frame
@@ -28,20 +29,48 @@ from brax.envs.base import Env, State
 from simjax.envs import motion, raycaster
 
 
+class Items(NamedTuple):
+    """Things to touch: ``pos`` (K, 2), ``look`` (K,) sprite look, ``reward`` (K,) given once per
+    episode on the first touch (the item then disappears), ``ends`` (K,) whether touching it ends
+    the episode as a success (MyWayHome's vest, the melon)."""
+
+    pos: jnp.ndarray
+    look: jnp.ndarray
+    reward: jnp.ndarray
+    ends: jnp.ndarray
+
+    @staticmethod
+    def build(rows) -> "Items":
+        """From rows ``(x, y, look, reward, ends)``."""
+        rows = list(rows)
+        if not rows:
+            raise ValueError("a layout needs at least one item")
+        x, y, look, reward, ends = (np.asarray(c) for c in zip(*rows))
+        return Items(
+            jnp.asarray(np.stack([x, y], 1), jnp.float32), jnp.asarray(look, jnp.int32),
+            jnp.asarray(reward, jnp.float32), jnp.asarray(ends, bool),
+        )
+
+
+def goal_item(xy, reward: float = 1.0):
+    """The item row of a navigation goal: the vest, ``reward`` on touch, the episode ends."""
+    return (float(xy[0]), float(xy[1]), raycaster.GOAL, reward, True)
+
+
 class Layout(NamedTuple):
-    """A static map: walls for rendering and collision, the goal item and the spawn spots."""
+    """A map: walls for rendering and collision, the items and the spawn spots."""
 
     walls: raycaster.Walls
     boxes: jnp.ndarray  # (S, 4) collision boxes of the walls
-    goal: jnp.ndarray  # (2,)
+    items: Items
     spawns: jnp.ndarray  # (K, 2)
 
     @staticmethod
-    def build(wall_rows, goal_xy, spawn_xy) -> "Layout":
+    def build(wall_rows, item_rows, spawn_xy) -> "Layout":
         walls = raycaster.Walls.from_rows(wall_rows)
         boxes = motion.wall_boxes(np.asarray(walls.start), np.asarray(walls.end))
         spawns = jnp.asarray(np.asarray(spawn_xy, np.float32).reshape(-1, 2))
-        return Layout(walls, boxes, jnp.asarray(goal_xy, jnp.float32), spawns)
+        return Layout(walls, boxes, Items.build(item_rows), spawns)
 
 
 class MazeState(NamedTuple):
@@ -51,6 +80,8 @@ class MazeState(NamedTuple):
     steps: jnp.ndarray  # () int32, agent steps taken in this episode
     ep_return: jnp.ndarray  # () float32, extrinsic return so far in this episode
     key: jnp.ndarray  # PRNG key that draws the next episode's start
+    collected: jnp.ndarray  # (K,) bool, items touched in this episode (no longer drawn)
+    world: Layout | None = None  # this episode's map where maps are generated, else None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,14 +92,16 @@ class MazeTask:
     random_heading: bool = True  # else every episode starts facing `heading`
     heading: float = 0.0  # radians, east
     max_steps: int = 525  # agent steps (2100 tics / 4)
-    goal_reward: float = 1.0
     touch_distance: float = 36.0  # Doom pickup: player half-size 16 + item radius 20, per axis
+    num_actions: int = 4  # the first of (turn left, turn right, forward, no-op)
 
 
 class MazeEnv(Env):
-    """A maze task: ``reset(rng) -> State``, ``step(state, action) -> State``; vmap for batches."""
+    """A maze task: ``reset(rng) -> State``, ``step(state, action) -> State``; vmap for batches.
 
-    num_actions = 4
+    Subclasses that generate maps override ``_start`` (a new map per episode, in
+    ``MazeState.world``), ``_on_touch`` and ``_success``.
+    """
 
     def __init__(
         self,
@@ -78,6 +111,8 @@ class MazeEnv(Env):
         motion_params: motion.MotionParams = motion.MotionParams(),
         auto_reset: bool = True,
     ):
+        if not 1 <= task.num_actions <= len(motion.ACTION_NAMES):
+            raise ValueError(f"num_actions must be in [1, {len(motion.ACTION_NAMES)}], got {task.num_actions}")
         self.layout = layout
         self.task = task
         self.camera = camera
@@ -91,19 +126,25 @@ class MazeEnv(Env):
 
     @property
     def action_size(self) -> int:
-        return self.num_actions
+        return self.task.num_actions
 
     @property
     def backend(self) -> str:
         return "simjax-raycaster"
 
+    @property
+    def num_items(self) -> int:
+        return self.layout.items.pos.shape[0]
+
     def reset(self, rng: jax.Array) -> State:
         key, sub = jax.random.split(rng)
-        ms = MazeState(self._spawn(sub), jnp.int32(0), jnp.float32(0.0), key)
+        pose, world = self._start(sub)
+        collected = jnp.zeros((self.num_items,), bool)
+        ms = MazeState(pose, jnp.int32(0), jnp.float32(0.0), key, collected, world)
         zero = jnp.float32(0.0)
         return State(
             pipeline_state=ms,
-            obs=self.render(ms.pose),
+            obs=self.render(pose, world, collected),
             reward=zero,
             done=zero,
             metrics=self._episode_metrics(zero, zero, zero, zero),
@@ -113,28 +154,36 @@ class MazeEnv(Env):
     def step(self, state: State, action: jax.Array) -> State:
         chex.assert_shape(action, ())
         ms: MazeState = state.pipeline_state
-        pose, reached = ms.pose, jnp.bool_(False)
+        world = self.world(ms)
+        pose, touched = ms.pose, jnp.zeros_like(ms.collected)
         for _ in range(self.motion_params.tics_per_step):
-            pose = motion.tic(pose, action, self.layout.boxes, self.motion_params)
-            reached = reached | self.touches_goal(pose.pos)
+            pose = motion.tic(pose, action, world.boxes, self.motion_params)
+            touched = touched | (self.touches(world.items.pos, pose.pos) & ~ms.collected)
+        reward = jnp.sum(jnp.where(touched, world.items.reward, 0.0)).astype(jnp.float32)
+        reached = jnp.any(touched & world.items.ends)
+        key, sub = jax.random.split(ms.key)
+        pose, world, collected = self._on_touch(jax.random.fold_in(sub, 1), pose, world, ms.collected | touched)
+        world = None if ms.world is None else world  # a fixed map is not carried in the state
         steps = ms.steps + 1
-        reward = jnp.where(reached, self.task.goal_reward, 0.0).astype(jnp.float32)
         truncated = (steps >= self.task.max_steps) & ~reached
         done = reached | truncated
         ep_return = ms.ep_return + reward
-        metrics = self._episode_metrics(done, reached, steps, ep_return)
+        metrics = self._episode_metrics(done, self._success(reached, ep_return), steps, ep_return)
 
-        key = ms.key
-        if self.auto_reset:
-            key, sub = jax.random.split(ms.key)
-            fresh = self._spawn(sub)
-            pose = jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, pose)
+        if not self.auto_reset:
+            key = ms.key
+        else:
+            fresh_pose, fresh_world = self._start(sub)
+            pose, world = jax.tree.map(
+                lambda new, old: jnp.where(done, new, old), (fresh_pose, fresh_world), (pose, world)
+            )
+            collected = collected & ~done
             steps = jnp.where(done, 0, steps)
             ep_return = jnp.where(done, 0.0, ep_return)
-        ms = MazeState(pose, steps, ep_return, key)
+        ms = MazeState(pose, steps, ep_return, key, collected, world)
         return state.replace(
             pipeline_state=ms,
-            obs=self.render(pose),
+            obs=self.render(pose, world, collected),
             reward=reward,
             done=done.astype(jnp.float32),
             metrics=metrics,
@@ -142,11 +191,31 @@ class MazeEnv(Env):
         )
 
     # pieces ------------------------------------------------------------------------------
-    def render(self, pose: motion.Pose) -> jnp.ndarray:
-        return raycaster.render(self.layout.walls, pose.pos, pose.heading, self.layout.goal, self.camera)
+    def world(self, ms: MazeState) -> Layout:
+        """The map the state is in: the env's own layout, or the state's generated one."""
+        return self.layout if ms.world is None else ms.world
 
-    def touches_goal(self, pos: jnp.ndarray) -> jnp.ndarray:
-        return jnp.all(jnp.abs(pos - self.layout.goal) < self.task.touch_distance)
+    def render(self, pose: motion.Pose, world: Layout | None = None, collected=None) -> jnp.ndarray:
+        world = self.layout if world is None else world
+        if collected is None:
+            collected = jnp.zeros((world.items.pos.shape[0],), bool)
+        sprites = raycaster.Sprites(world.items.pos, world.items.look, ~collected)
+        return raycaster.render(world.walls, pose.pos, pose.heading, sprites, self.camera)
+
+    def touches(self, item_pos: jnp.ndarray, pos: jnp.ndarray) -> jnp.ndarray:
+        """(K,) whether the player at ``pos`` touches each item."""
+        return jnp.all(jnp.abs(item_pos - pos) < self.task.touch_distance, axis=-1)
+
+    def _start(self, key: jax.Array) -> tuple[motion.Pose, Layout | None]:
+        """An episode's first pose and map (None: the env's own layout)."""
+        return self._spawn(key), None
+
+    def _on_touch(self, key, pose, world, collected):
+        """What touching items does besides reward and ending: nothing, for a fixed map."""
+        return pose, world, collected
+
+    def _success(self, reached, ep_return):
+        return reached
 
     def _spawn(self, key: jax.Array) -> motion.Pose:
         k_spot, k_head = jax.random.split(key)

@@ -1,4 +1,4 @@
-"""Top-down drawing of a layout for people: walls in their texture's colour, spawns, goal, agent."""
+"""Top-down drawing of a layout for people: walls in their texture's colour, spawns, items, agent."""
 
 from __future__ import annotations
 
@@ -10,7 +10,12 @@ from simjax.envs import raycaster
 from simjax.envs.maze import Layout
 
 
-def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str | None = None):
+_ITEM_MARKERS = {raycaster.GOAL: ("*", 220, "goal"), raycaster.APPLE: ("o", 60, "apple (+1)"),
+                 raycaster.LEMON: ("o", 60, "lemon (-1)"), raycaster.MELON: ("o", 160, "melon (+20)")}
+
+
+def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str | None = None,
+                 spawns: bool = True):
     """Draw ``layout`` on a matplotlib axis (made if not given) and return the axis.
 
     ``pose`` is an optional (x, y, heading) drawn as an arrow; ``trajectory`` an optional
@@ -25,12 +30,19 @@ def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str
         _, ax = plt.subplots(figsize=(6, 5))
     start, end = np.asarray(layout.walls.start), np.asarray(layout.walls.end)
     tex = np.asarray(layout.walls.texture)
-    for (x1, y1), (x2, y2), t in zip(start, end, tex):
+    standing = layout.walls.standing()
+    for (x1, y1), (x2, y2), t in zip(start[standing], end[standing], tex[standing]):
         ax.plot([x1, x2], [y1, y2], color=raycaster.TEXTURE_LOOKS[t][0], linewidth=3, solid_capstyle="butt")
-    spawns = np.asarray(layout.spawns)
-    ax.scatter(spawns[:, 0], spawns[:, 1], marker="x", color="tab:blue", s=25, label="spawn spots", zorder=3)
-    gx, gy = np.asarray(layout.goal)
-    ax.scatter([gx], [gy], marker="*", color="limegreen", edgecolor="black", s=220, label="goal", zorder=4)
+    if spawns:
+        xy = np.asarray(layout.spawns)
+        ax.scatter(xy[:, 0], xy[:, 1], marker="x", color="tab:blue", s=25, label="spawn spots", zorder=3)
+    items = layout.items
+    pos, look = np.asarray(items.pos), np.asarray(items.look)
+    for k in sorted(set(look.tolist())):
+        at = pos[look == k]
+        marker, size, name = _ITEM_MARKERS[k]
+        ax.scatter(at[:, 0], at[:, 1], marker=marker, color=raycaster.SPRITE_LOOKS[k][0], edgecolor="black",
+                   s=size, label=name, zorder=4)
     if trajectory is not None:
         traj = np.asarray(trajectory)
         ax.plot(traj[:, 0], traj[:, 1], color="tab:red", linewidth=1, alpha=0.7, label="trajectory")
@@ -40,7 +52,7 @@ def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.legend(loc="lower right", fontsize=7)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     if title:
         ax.set_title(title, fontsize=9)
     return ax

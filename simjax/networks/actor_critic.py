@@ -1,7 +1,8 @@
 """The LSTM actor-critic of LSTM-A3C (paper appendix A.5).
 
 obs uint8 (42, 42, 3) -> conv 16 (3x3, s2) -> conv 32 (3x3, s2) -> fc 256 -> LSTM 256 ->
-{value (fc 1), policy logits (fc |A|)}. The module consumes whole time-major sequences
+{value (fc 1), policy logits (fc |A|)}. Any image size works (the encoder reads it from the
+observation); a flat observation vector (a gymnax CartPole's (4,)) skips the convolutions. The module consumes whole time-major sequences
 (T, N, ...): the encoder runs once over all T*N frames (one large batch is what a CPU does
 well), then the LSTM is scanned over time, its carry zeroed wherever ``reset`` marks the first
 step of an episode. Acting is the same call with T = 1, so acting and learning share one path.
@@ -20,16 +21,23 @@ from simjax.networks.layers import PatchConv
 
 
 class Encoder(nn.Module):
-    """Frame embedding: conv 16 -> conv 32 (3x3, stride 2, ReLU) -> fc ``features`` (ReLU)."""
+    """Frame embedding: conv 16 -> conv 32 (3x3, stride 2, ReLU) -> fc ``features`` (ReLU).
+
+    ``image=False``: the observation is a vector, and only the fc layer is applied. uint8
+    pixels are scaled by 1/255; float observations are taken as they are."""
 
     features: int = 256
+    image: bool = True
 
     @nn.compact
     def __call__(self, obs: jnp.ndarray) -> jnp.ndarray:
-        x = obs.astype(jnp.float32) / 255.0
-        x = nn.relu(PatchConv(16, kernel=3, stride=2)(x))
-        x = nn.relu(PatchConv(32, kernel=3, stride=2)(x))
-        x = x.reshape(x.shape[:-3] + (-1,))
+        x = obs.astype(jnp.float32)
+        if obs.dtype == jnp.uint8:
+            x = x / 255.0
+        if self.image:
+            x = nn.relu(PatchConv(16, kernel=3, stride=2)(x))
+            x = nn.relu(PatchConv(32, kernel=3, stride=2)(x))
+            x = x.reshape(x.shape[:-3] + (-1,))
         return nn.relu(nn.Dense(self.features)(x))
 
 
@@ -55,7 +63,8 @@ class ResetLSTM(nn.Module):
 
 
 class ActorCritic(nn.Module):
-    """``(carry, obs (T, N, H, W, C), reset (T, N)) -> (carry, logits (T, N, A), value (T, N))``."""
+    """``(carry, obs (T, N, H, W, C), reset (T, N)) -> (carry, logits (T, N, A), value (T, N))``;
+    obs may also be vectors (T, N, D)."""
 
     num_actions: int
     hidden: int = 256
@@ -63,9 +72,9 @@ class ActorCritic(nn.Module):
 
     @nn.compact
     def __call__(self, carry, obs: jnp.ndarray, reset: jnp.ndarray):
-        chex.assert_rank(obs, 5)
+        chex.assert_rank(obs, {3, 5})
         chex.assert_equal_shape_prefix([obs, reset], 2)
-        x = Encoder(self.embed)(obs)
+        x = Encoder(self.embed, image=obs.ndim == 5)(obs)
         carry, h = ResetLSTM(self.hidden)(carry, (x, reset))
         logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
         value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0))(h)[..., 0]

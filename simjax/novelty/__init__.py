@@ -1,6 +1,7 @@
 """Novelty models as exploration bonuses: SIM (and its ablations), RND and ICM.
 
-``make_novelty(config, num_actions)`` builds the ``Novelty`` object the learner is given.
+``make_novelty(config, num_actions, obs_shape)`` builds the ``Novelty`` object the learner is
+given, after ``check_observation`` has made sure the model can read the observations.
 """
 
 from __future__ import annotations
@@ -27,7 +28,32 @@ def make_model(config, num_actions: int):
     raise ValueError(f"unknown algo {config.algo!r}")
 
 
-def make_novelty(config, num_actions: int) -> Novelty:
+# RND's target (8x8 s4, 4x4 s2, 3x3 s1, all VALID) leaves at least one pixel from 36x36 frames
+RND_TARGET_MIN_SIZE = 36
+
+
+def check_observation(config, obs_shape) -> None:
+    """A clear error if ``config.algo``'s model cannot read observations of ``obs_shape``."""
+    if config.algo == "a2c":
+        return
+    shape = tuple(obs_shape)
+    if len(shape) != 3:
+        raise ValueError(
+            f"ALGO={config.algo} reads image observations (height, width, channels); "
+            f"{config.env} gives shape {shape}. Use ALGO=a2c for vector observations."
+        )
+    uses_rnd_target = config.algo == "rnd" or (config.algo == "sim" and config.sim_target == "rnd")
+    if uses_rnd_target and min(shape[:2]) < RND_TARGET_MIN_SIZE:
+        raise ValueError(
+            f"ALGO={config.algo}'s RND target needs frames of at least {RND_TARGET_MIN_SIZE}x"
+            f"{RND_TARGET_MIN_SIZE}; {config.env} gives {shape[0]}x{shape[1]}. "
+            "Use ALGO=sim with --sim-target embed, or ALGO=icm."
+        )
+
+
+def make_novelty(config, num_actions: int, obs_shape=None) -> Novelty:
+    if obs_shape is not None:
+        check_observation(config, obs_shape)
     return Novelty(
         model=make_model(config, num_actions),
         bonus_scale=config.bonus_scale,
@@ -39,5 +65,6 @@ def make_novelty(config, num_actions: int) -> Novelty:
 
 __all__ = [
     "ICM", "METRICS", "Memory", "Novelty", "NoveltyState", "RND", "RunningMeanStd", "SIM",
-    "Timeline", "build_timeline", "in_episode", "init_memory", "make_model", "make_novelty",
+    "Timeline", "build_timeline", "check_observation", "in_episode", "init_memory", "make_model",
+    "make_novelty",
 ]

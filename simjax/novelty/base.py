@@ -28,14 +28,14 @@ import jax.numpy as jnp
 class Memory(NamedTuple):
     """The last ``M`` frames and actions of each environment, kept across rollouts."""
 
-    frames: jnp.ndarray  # (M, N, H, W, C) uint8
+    frames: jnp.ndarray  # (M, N, H, W, C), the observations' dtype (uint8 for our tasks)
     actions: jnp.ndarray  # (M, N) int32
     reset: jnp.ndarray  # (M, N) bool, frame starts an episode
     valid: jnp.ndarray  # (M, N) bool, false until a real frame has filled the slot
 
 
 class Timeline(NamedTuple):
-    frames: jnp.ndarray  # (M+T+1, N, H, W, C) uint8
+    frames: jnp.ndarray  # (M+T+1, N, H, W, C), the observations' dtype
     actions: jnp.ndarray  # (M+T, N) int32
     segment: jnp.ndarray  # (M+T+1, N) int32, episode number along the timeline
     valid: jnp.ndarray  # (M+T+1, N) bool
@@ -46,10 +46,10 @@ class Timeline(NamedTuple):
         return self.frames.shape[0] - self.history - 1
 
 
-def init_memory(history: int, num_envs: int, obs_shape) -> Memory:
+def init_memory(history: int, num_envs: int, obs_shape, dtype=jnp.uint8) -> Memory:
     m, n = history, num_envs
     return Memory(
-        frames=jnp.zeros((m, n) + tuple(obs_shape), jnp.uint8),
+        frames=jnp.zeros((m, n) + tuple(obs_shape), dtype),
         actions=jnp.zeros((m, n), jnp.int32),
         reset=jnp.ones((m, n), bool),
         valid=jnp.zeros((m, n), bool),
@@ -119,11 +119,17 @@ class RunningMeanStd(NamedTuple):
 
 
 def normalize_frames(frames: jnp.ndarray, stats: RunningMeanStd | None) -> jnp.ndarray:
-    """uint8 frames -> float: per-pixel (x - mean) / std clipped to [-5, 5] (RND), or x / 255."""
+    """Frames -> float: per-pixel (x - mean) / std clipped to [-5, 5] (RND), or else ``to_unit``."""
     x = frames.astype(jnp.float32)
     if stats is None:
-        return x / 255.0
+        return to_unit(frames)
     return jnp.clip((x - stats.mean) / jnp.sqrt(stats.var + 1e-8), -5.0, 5.0)
+
+
+def to_unit(frames: jnp.ndarray) -> jnp.ndarray:
+    """uint8 pixels / 255; observations of any other dtype (gymnax's floats) as they are."""
+    x = frames.astype(jnp.float32)
+    return x / 255.0 if frames.dtype == jnp.uint8 else x
 
 
 def discounted_filter(running: jnp.ndarray, rewards: jnp.ndarray, gamma: float):

@@ -56,7 +56,7 @@ class Novelty:
     def init(self, key, obs: jnp.ndarray):
         n = obs.shape[0]
         state = NoveltyState(
-            memory=init_memory(self.model.history if self.model else 0, n, obs.shape[1:]),
+            memory=init_memory(self.model.history if self.model else 0, n, obs.shape[1:], obs.dtype),
             obs_stats=RunningMeanStd.create(obs.shape[1:]),
             ret_stats=RunningMeanStd.create(()),
             ret_running=jnp.zeros((n,), jnp.float32),

@@ -18,7 +18,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from simjax.novelty.base import Timeline, in_episode, masked_mean, shifted
+from simjax.novelty.base import Timeline, in_episode, masked_mean, shifted, to_unit
 from simjax.novelty.networks import ICMNet, RNDPredictor, RNDTarget, SIMNet
 
 
@@ -131,7 +131,8 @@ class ICM:
 
     Frames before the episode's first are zero in the stack. As in ICM's code, the forward loss
     trains the features too (no stop-gradient on phi_{t+1}); the inverse loss keeps them from
-    collapsing. ICM reads raw grey frames / 255 (its own preprocessing), not normalised ones.
+    collapsing. ICM reads raw grey frames / 255 (its own preprocessing), not normalised ones;
+    stacks are of whatever frame size the environment gives.
     """
 
     num_actions: int
@@ -144,7 +145,7 @@ class ICM:
 
     def stacks(self, tl: Timeline) -> jnp.ndarray:
         """(T+1, N, 42, 42, stack) grey stacks ending at frames M ... M+T (o_0 ... o_T)."""
-        grey = jnp.mean(tl.frames.astype(jnp.float32), axis=-1) / 255.0  # (M+T+1, N, h, w)
+        grey = jnp.mean(to_unit(tl.frames), axis=-1)  # (M+T+1, N, h, w)
         m, t = tl.history, tl.num_targets
         ends_seg = tl.segment[m:]
         layers = []

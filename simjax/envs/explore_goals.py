@@ -1,0 +1,198 @@
+"""``explore-goals``: a new maze every episode, after DMLab's Explore Goal Locations Small
+(paper section 3.4, appendix D).
+
+Each episode ``reset`` generates, in JAX, a maze on a grid of ``cells`` x ``cells`` square
+cells (``cell_size`` Doom units each): a uniformly random spanning tree of the grid graph (all
+cells connected, no loops), then each remaining interior wall knocked out with probability
+``loop_prob`` so there are loops. Every wall gets a random look of the raycaster's twelve, so
+places can be told apart. The goal (the vest) stands in the middle of a random cell; touching it
+gives +10 and moves the agent to a random cell and the goal to another, in the same maze. An
+episode lasts 1350 agent steps with no early end (a truncation); 3 actions {turn left, turn
+right, forward}. ``episode_success`` is 1 for an episode that reached at least one goal.
+
+The spanning tree is the minimum spanning tree of random edge weights, which is what
+randomised Kruskal builds, computed with Boruvka's rounds instead of Kruskal's edge-by-edge
+loop: each round every component picks its lightest edge out and the components merge
+(pointer jumping), so there are ``ceil(log2(cells^2))`` vectorised rounds and no data-dependent
+loop. The env runs ``_start`` at every step (``jnp.where`` picks it only where an episode
+ended; under ``vmap`` a ``lax.cond`` would do the same), so generation must stay cheap:
+``make bench`` measures it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from simjax.envs import motion, raycaster
+from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
+
+_FAR = 1e9
+
+
+@dataclasses.dataclass(frozen=True)
+class GridGraph:
+    """The cells (``cells``^2, numbered ``y * cells + x``) and the interior walls between them:
+    edge ``e`` joins cells ``a[e]`` and ``b[e]``; the first ``cells * (cells - 1)`` edges join
+    east-west neighbours, the rest north-south ones."""
+
+    cells: int
+
+    @property
+    def num_cells(self) -> int:
+        return self.cells * self.cells
+
+    def edges(self) -> tuple[np.ndarray, np.ndarray]:
+        c = self.cells
+        x, y = np.meshgrid(np.arange(c - 1), np.arange(c), indexing="xy")
+        east = (y * c + x).ravel(), (y * c + x + 1).ravel()
+        x, y = np.meshgrid(np.arange(c), np.arange(c - 1), indexing="xy")
+        north = (y * c + x).ravel(), ((y + 1) * c + x).ravel()
+        return np.concatenate([east[0], north[0]]), np.concatenate([east[1], north[1]])
+
+
+def random_spanning_tree(key: jax.Array, graph: GridGraph) -> jnp.ndarray:
+    """(E,) bool: which edges of ``graph`` form the minimum spanning tree of uniform random
+    weights (Boruvka). With distinct weights (probability 1) it has exactly V - 1 edges."""
+    a, b = (jnp.asarray(v) for v in graph.edges())
+    num = graph.num_cells
+    ids = jnp.arange(num)
+    weight = jax.random.uniform(key, a.shape)
+    comp = ids  # component label (its root cell) of every cell
+    tree = jnp.zeros(a.shape, bool)
+    rounds = max(1, math.ceil(math.log2(num)))
+    for _ in range(rounds):
+        ca, cb = comp[a], comp[b]
+        w = jnp.where(ca != cb, weight, jnp.inf)
+        best = jnp.full((num,), jnp.inf).at[ca].min(w).at[cb].min(w)  # lightest edge out, per root
+        pick_a, pick_b = (w < jnp.inf) & (w == best[ca]), (w < jnp.inf) & (w == best[cb])
+        tree = tree | pick_a | pick_b
+        # each root points at the root across its picked edge; mutual pairs keep the smaller
+        parent = ids.at[jnp.where(pick_a, ca, num)].set(cb, mode="drop")
+        parent = parent.at[jnp.where(pick_b, cb, num)].set(ca, mode="drop")
+        parent = jnp.where((parent[parent] == ids) & (ids < parent), ids, parent)
+        for _ in range(rounds):  # pointer jumping: every root reaches its new root
+            parent = parent[parent]
+        comp = parent[comp]
+    return tree
+
+
+@dataclasses.dataclass(frozen=True)
+class MazeGenerator:
+    """Mazes as raycaster layouts: the wall rows are fixed (every interior edge, then the outer
+    boundary); a maze is which of them are open, and the looks of the closed ones."""
+
+    cells: int = 9
+    cell_size: float = 128.0
+    loop_prob: float = 0.1
+
+    def __post_init__(self):
+        if not 2 <= self.cells <= 32:
+            raise ValueError(f"cells must be in [2, 32], got {self.cells}")
+        if not 0.0 <= self.loop_prob <= 1.0:
+            raise ValueError(f"loop_prob must be in [0, 1], got {self.loop_prob}")
+        if self.cell_size < 64:
+            raise ValueError(f"cell_size must be at least 64 (the player is 32 wide), got {self.cell_size}")
+
+    @property
+    def graph(self) -> GridGraph:
+        return GridGraph(self.cells)
+
+    def wall_rows(self) -> np.ndarray:
+        """(E + 4 * cells, 4) segments [x1, y1, x2, y2]: interior edges in ``graph`` order, then
+        the boundary."""
+        c, s = self.cells, self.cell_size
+        a, b = self.graph.edges()
+        ax, ay = a % c, a // c
+        rows = []
+        for e in range(a.size):
+            if b[e] == a[e] + 1:  # east-west neighbours: a vertical wall on x = (ax + 1) s
+                rows.append(((ax[e] + 1) * s, ay[e] * s, (ax[e] + 1) * s, (ay[e] + 1) * s))
+            else:  # north-south neighbours: a horizontal wall on y = (ay + 1) s
+                rows.append((ax[e] * s, (ay[e] + 1) * s, (ax[e] + 1) * s, (ay[e] + 1) * s))
+        for i in range(c):
+            rows += [(i * s, 0, (i + 1) * s, 0), (i * s, c * s, (i + 1) * s, c * s),
+                     (0, i * s, 0, (i + 1) * s), (c * s, i * s, c * s, (i + 1) * s)]
+        return np.asarray(rows, np.float32)
+
+    def cell_centres(self) -> np.ndarray:
+        c, s = self.cells, self.cell_size
+        i = np.arange(c * c)
+        return np.stack([(i % c + 0.5) * s, (i // c + 0.5) * s], 1).astype(np.float32)
+
+    def template(self) -> Layout:
+        """Every wall closed, look 0, the goal in cell 0; ``generate`` fills in a maze."""
+        rows = [(*r, 0) for r in self.wall_rows()]
+        return Layout.build(rows, [goal_item(self.cell_centres()[0], 10.0)], self.cell_centres())
+
+    def open_edges(self, key: jax.Array) -> jnp.ndarray:
+        """(E,) bool: the spanning tree's edges, plus each other edge with ``loop_prob``."""
+        k_tree, k_loop = jax.random.split(key)
+        tree = random_spanning_tree(k_tree, self.graph)
+        loops = jax.random.bernoulli(k_loop, self.loop_prob, tree.shape)
+        return tree | loops
+
+    def generate(self, key: jax.Array, template: Layout | None = None) -> Layout:
+        """A random maze (goal item still in cell 0)."""
+        if template is None:
+            with jax.ensure_compile_time_eval():  # the fixed rows are constants, also under jit
+                template = self.template()
+        k_open, k_look = jax.random.split(key)
+        is_open = self.open_edges(k_open)
+        walls, boxes = template.walls, template.boxes
+        row_open = jnp.concatenate([is_open, jnp.zeros(4 * self.cells, bool)])
+        v_open, h_open = row_open[walls.v_index], row_open[walls.h_index]
+        walls = walls._replace(
+            texture=jax.random.randint(k_look, walls.texture.shape, 0, raycaster.NUM_TEXTURES),
+            v_lo=jnp.where(v_open, _FAR, walls.v_lo), v_hi=jnp.where(v_open, -_FAR, walls.v_hi),
+            h_lo=jnp.where(h_open, _FAR, walls.h_lo), h_hi=jnp.where(h_open, -_FAR, walls.h_hi),
+        )
+        boxes = jnp.where(row_open[:, None], _FAR, boxes)  # an open wall's box is out of reach
+        return template._replace(walls=walls, boxes=boxes)
+
+
+class ExploreGoalsEnv(MazeEnv):
+    """Explore Goal Locations on generated mazes; ``MazeState.world`` holds the episode's maze."""
+
+    def __init__(self, generator: MazeGenerator = MazeGenerator(), max_steps: int = 1350,
+                 goal_reward: float = 10.0, **kwargs):
+        self.generator = generator
+        self.goal_reward = goal_reward
+        task = MazeTask("explore-goals", random_heading=True, max_steps=max_steps, num_actions=3)
+        template = generator.template()
+        # the goal pays ``goal_reward`` and does not end the episode
+        items = template.items._replace(reward=jnp.full((1,), goal_reward), ends=jnp.zeros((1,), bool))
+        template = template._replace(items=items)
+        super().__init__(template, task, **kwargs)
+
+    def _place(self, key, world: Layout):
+        """A random start pose and a goal in another random cell."""
+        k_goal, k_cell, k_head = jax.random.split(key, 3)
+        num = self.generator.graph.num_cells
+        goal = jax.random.randint(k_goal, (), 0, num)
+        cell = (goal + jax.random.randint(k_cell, (), 1, num)) % num
+        heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
+        pose = motion.Pose(world.spawns[cell], heading, jnp.zeros(2, jnp.float32))
+        items = world.items._replace(pos=world.spawns[goal][None])
+        return pose, world._replace(items=items)
+
+    def _start(self, key):
+        k_maze, k_place = jax.random.split(key)
+        return self._place(k_place, self.generator.generate(k_maze, self.layout))
+
+    def _on_touch(self, key, pose, world, collected):
+        # the goal was touched: the agent moves to a random cell and the goal to another
+        new_pose, new_world = self._place(key, world)
+        hit = collected[0]
+        pose, world = jax.tree.map(lambda n, o: jnp.where(hit, n, o), (new_pose, new_world), (pose, world))
+        return pose, world, jnp.zeros_like(collected)
+
+    def _success(self, reached, ep_return):
+        return ep_return > 0
+
+
+__all__ = ["ExploreGoalsEnv", "MazeGenerator", "GridGraph", "random_spanning_tree"]

@@ -1,0 +1,235 @@
+"""The paper's other two worlds: ``melon`` (Stairway to Melon) and ``explore-goals`` (generated
+mazes), and the item sprites they use."""
+
+import collections
+import math
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simjax.envs import make, melon, motion, raycaster
+from simjax.envs.explore_goals import ExploreGoalsEnv, GridGraph, MazeGenerator, random_spanning_tree
+
+
+def _walk(env, state, actions):
+    def body(s, a):
+        s = env.step(s, a)
+        return s, s
+    return jax.lax.scan(body, state, actions)[1]
+
+
+def _placed(env, x, y, degrees, key=0):
+    """A fresh state of ``env`` with the agent moved to (x, y) facing ``degrees``."""
+    state = env.reset(jax.random.PRNGKey(key))
+    pose = motion.Pose(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(degrees)), jnp.zeros(2))
+    return state.replace(pipeline_state=state.pipeline_state._replace(pose=pose))
+
+
+def _count(frame, lo, hi):
+    """Pixels whose RGB lies within [lo, hi] per channel."""
+    f = np.asarray(frame).astype(int)
+    return int(np.all((f >= np.asarray(lo)) & (f <= np.asarray(hi)), axis=-1).sum())
+
+
+RED = ((120, 0, 0), (255, 60, 60))  # an apple's body
+YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
+
+
+# ---- melon ---------------------------------------------------------------------------------
+def test_melon_apples_pay_once_each_and_lead_to_a_dead_end():
+    env = make("melon")
+    walk = jax.jit(lambda s, a: _walk(env, s, a))
+    states = walk(_placed(env, -120.0, 448.0, 180.0), jnp.full((60,), motion.FORWARD))
+    reward = np.asarray(states.reward)
+    assert reward.sum() == len(melon.APPLES_XY) == 6 and set(reward[reward != 0]) == {1.0}
+    assert np.asarray(states.done).sum() == 0  # the dead end ends nothing
+    assert np.asarray(states.pipeline_state.collected)[-1, :6].all()
+    assert not np.asarray(states.pipeline_state.collected)[-1, 6:].any()
+    assert float(states.pipeline_state.pose.pos[-1, 0]) == pytest.approx(-1024 + 16, abs=1.0)
+
+
+def test_melon_lemon_costs_one_and_the_melon_ends_the_episode():
+    env = make("melon")
+    walk = jax.jit(lambda s, a: _walk(env, s, a))
+    lemon = walk(_placed(env, 150.0, 448.0, 0.0), jnp.full((15,), motion.FORWARD))
+    assert np.asarray(lemon.reward).sum() == -1.0 and np.asarray(lemon.done).sum() == 0
+    states = walk(_placed(env, 704.0, 600.0, 90.0), jnp.full((30,), motion.FORWARD))
+    done = np.asarray(states.done)
+    t = int(np.argmax(done))
+    assert done[t] == 1 and states.reward[t] == 20.0 and np.asarray(states.reward)[:t].sum() == 0
+    assert states.metrics["episode_success"][t] == 1 and states.info["truncation"][t] == 0
+    assert states.metrics["episode_return"][t] == 20.0
+    # the next episode starts at the start, every fruit back in place
+    np.testing.assert_allclose(np.asarray(states.pipeline_state.pose.pos[t]), melon.START_XY)
+    assert not np.asarray(states.pipeline_state.collected[t]).any()
+
+
+def test_melon_has_three_actions_and_525_steps():
+    env = make("melon")
+    assert env.action_size == 3 and env.task.max_steps == 525
+    states = jax.jit(lambda s, a: _walk(env, s, a))(env.reset(jax.random.PRNGKey(0)), jnp.zeros((525,), jnp.int32))
+    assert np.flatnonzero(np.asarray(states.done)).tolist() == [524]
+    assert states.info["truncation"][524] == 1 and states.metrics["episode_success"][524] == 0
+
+
+def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
+    env = make("melon")
+    west = motion.Pose(jnp.array([-120.0, 448.0]), jnp.float32(math.pi), jnp.zeros(2))
+    east = motion.Pose(jnp.array([250.0, 448.0]), jnp.float32(0.0), jnp.zeros(2))
+    apples, lemon = np.asarray(env.render(west)), np.asarray(env.render(east))
+    assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
+    assert _count(lemon, *YELLOW) >= 4 and _count(lemon, *RED) == 0
+    gone = np.asarray(env.render(west, None, jnp.ones((env.num_items,), bool)))
+    assert _count(gone, *RED) == 0
+
+
+def test_nearer_sprites_hide_farther_ones():
+    # a melon right in front of the eye, an apple behind it on the same line of sight
+    walls = raycaster.Walls.from_rows([(-1000, -200, 100, -200, 8), (100, -200, 100, 200, 8),
+                                       (100, 200, -1000, 200, 8), (-1000, 200, -1000, -200, 8)])
+    sprites = raycaster.Sprites(jnp.array([[-800.0, 0.0], [-650.0, 0.0]]), jnp.array([raycaster.MELON, raycaster.APPLE]),
+                                jnp.ones(2, bool))
+    eye = jnp.array([-900.0, 0.0])
+    frame = lambda visible: np.asarray(raycaster.render(walls, eye, jnp.float32(0.0), sprites._replace(visible=jnp.array(visible))))
+    apple = np.any(frame([False, True]) != frame([False, False]), axis=-1)  # the apple's pixels
+    assert apple.sum() >= 2
+    # with both drawn, every apple pixel shows the melon (the apple alone shows through nowhere)
+    np.testing.assert_array_equal(frame([True, True])[apple], frame([True, False])[apple])
+    # and the melon behind a nearer apple is hidden where they overlap
+    near_apple = sprites._replace(pos=jnp.array([[-300.0, 0.0], [-850.0, 0.0]]))
+    seen = lambda v: np.asarray(raycaster.render(walls, eye, jnp.float32(0.0), near_apple._replace(visible=jnp.array(v))))
+    apple = np.any(seen([False, True]) != seen([False, False]), axis=-1)
+    np.testing.assert_array_equal(seen([True, True])[apple], seen([False, True])[apple])
+
+
+# ---- explore-goals: generation ------------------------------------------------------------
+def _components(num_cells, a, b, is_open):
+    """Flood fill (numpy): the number of cells reachable from cell 0 through open edges."""
+    nbrs = collections.defaultdict(list)
+    for e in np.flatnonzero(is_open):
+        nbrs[a[e]].append(b[e])
+        nbrs[b[e]].append(a[e])
+    seen, todo = {0}, [0]
+    while todo:
+        for n in nbrs[todo.pop()]:
+            if n not in seen:
+                seen.add(n)
+                todo.append(n)
+    return len(seen)
+
+
+@pytest.mark.parametrize("cells", [2, 9, 11])
+def test_spanning_tree_connects_every_cell_without_loops(cells):
+    graph = GridGraph(cells)
+    a, b = graph.edges()
+    trees = np.asarray(jax.jit(jax.vmap(lambda k: random_spanning_tree(k, graph)))(
+        jax.random.split(jax.random.PRNGKey(cells), 300)))
+    for tree in trees:
+        assert tree.sum() == graph.num_cells - 1  # V - 1 edges ...
+        assert _components(graph.num_cells, a, b, tree) == graph.num_cells  # ... and connected: a tree
+    # random: every tree a different one on big grids; on 2x2 (a 4-cycle) each of its 4 trees
+    # (drop the heaviest edge) about equally often
+    counts = collections.Counter(t.tobytes() for t in trees)
+    if cells == 2:
+        assert len(counts) == 4 and all(45 <= c <= 105 for c in counts.values())
+    else:
+        assert len(counts) == len(trees)
+    assert trees.any(axis=0).all()
+
+
+def test_generated_mazes_are_connected_have_loops_and_match_their_walls():
+    gen = MazeGenerator()
+    a, b = gen.graph.edges()
+    keys = jax.random.split(jax.random.PRNGKey(0), 300)
+    is_open = np.asarray(jax.jit(jax.vmap(lambda k: gen.open_edges(jax.random.split(k)[0])))(keys))  # as generate
+    layouts = jax.jit(jax.vmap(gen.generate))(keys[:20])
+    for i, edges in enumerate(is_open):
+        assert _components(gen.graph.num_cells, a, b, edges) == gen.graph.num_cells  # every goal reachable
+    extra = is_open.sum(1) - (gen.graph.num_cells - 1)
+    assert (extra >= 0).all() and extra.mean() > 2  # loops: ~10% of the non-tree walls are open
+    for i in range(20):
+        layout = jax.tree.map(lambda x: x[i], layouts)
+        standing = layout.walls.standing()
+        edges = len(a)
+        np.testing.assert_array_equal(standing[:edges], ~is_open[i])  # open edge = no wall
+        assert standing[edges:].all()  # the boundary always stands
+        far = np.asarray(layout.boxes)[:edges][is_open[i]]
+        assert (far > 1e8).all()  # an open wall's collision box is out of reach
+    looks = np.asarray(layouts.walls.texture)
+    assert len(np.unique(looks)) == raycaster.NUM_TEXTURES and not (looks == looks[0]).all()
+
+
+def test_generator_rejects_bad_settings():
+    with pytest.raises(ValueError, match="cells"):
+        MazeGenerator(cells=1)
+    with pytest.raises(ValueError, match="loop_prob"):
+        MazeGenerator(loop_prob=1.5)
+
+
+# ---- explore-goals: the task ---------------------------------------------------------------
+def test_explore_goals_new_maze_each_episode_same_maze_within():
+    env = ExploreGoalsEnv(max_steps=4)
+    states = jax.jit(lambda s, a: _walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
+    standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
+    done = np.asarray(states.done)
+    assert np.flatnonzero(done).tolist() == [3, 7, 11]
+    assert (states.info["truncation"][done > 0] == 1).all()  # the time limit; there is no other end
+    assert (standing[0] == standing[2]).all()  # same maze within an episode
+    assert not (standing[3] == standing[2]).all() and not (standing[7] == standing[3]).all()
+
+
+def test_reaching_the_goal_pays_ten_and_moves_agent_and_goal():
+    env = make("explore-goals")
+    assert env.action_size == 3 and env.task.max_steps == 1350
+    state = env.reset(jax.random.PRNGKey(2))
+    ms = state.pipeline_state
+    world = ms.world._replace(items=ms.world.items._replace(pos=ms.pose.pos[None]))  # goal under the agent
+    state = state.replace(pipeline_state=ms._replace(world=world))
+    after = jax.jit(env.step)(state, jnp.int32(0))
+    assert float(after.reward) == 10.0 and float(after.done) == 0.0
+    new = after.pipeline_state
+    assert not np.allclose(np.asarray(new.pose.pos), np.asarray(ms.pose.pos))
+    assert not np.allclose(np.asarray(new.world.items.pos), np.asarray(new.pose.pos))
+    assert not np.asarray(new.collected).any()
+    np.testing.assert_array_equal(np.asarray(new.world.walls.v_lo), np.asarray(ms.world.walls.v_lo))  # same maze
+    # agent and goal sit at cell centres
+    centres = env.generator.cell_centres()
+    for p in (new.pose.pos, new.world.items.pos[0]):
+        assert np.min(np.abs(centres - np.asarray(p)).sum(1)) < 1e-3
+    assert float(new.ep_return) == 10.0
+
+
+def test_explore_goals_agents_never_cross_a_standing_wall():
+    env = ExploreGoalsEnv(max_steps=10_000)
+    keys = jax.random.split(jax.random.PRNGKey(5), 8)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
+    walk = jax.jit(jax.vmap(lambda k, a: _walk(env, env.reset(k), a)))
+    states = walk(keys, actions)
+    r = env.motion_params.radius
+    for i in range(8):
+        boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
+        pos = np.asarray(states.pipeline_state.pose.pos[i])
+        overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
+                   & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
+        assert not overlap.any()
+    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
+    assert travelled > 8 * 300 * 5
+
+
+@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3)])
+def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
+    env = make(name)
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    s = reset(keys)
+    chex.assert_shape(s.obs, (4, 42, 42, 3))
+    chex.assert_type(s.obs, jnp.uint8)
+    s2 = step(s, jnp.array([0, 1, 2, 2]))
+    chex.assert_shape([s2.reward, s2.done, s2.info["truncation"]], (4,))
+    chex.assert_type([s2.reward, s2.done], jnp.float32)
+    chex.assert_tree_all_finite(s2.pipeline_state.pose)
+    chex.assert_trees_all_equal(s2, step(reset(keys), jnp.array([0, 1, 2, 2])))
+    assert env.action_size == actions and env.observation_size == (42, 42, 3)
