@@ -226,6 +226,21 @@ def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
     assert bool(after.novelty.memory.valid.all())  # 8 steps filled the memory of every env
 
 
+def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
+    """eq. (8) scales the RL loss by eta; the policy group's clip and Adam epsilon are scaled with
+    it, so a novelty learner whose bonus is 0 takes A2C's policy steps (to float rounding)."""
+    policies = []
+    for algo in ("a2c", "rnd"):
+        config = _tiny_config(algo=algo, bonus_scale=0.0, num_envs=2, rollout_len=4, total_steps=32, log_every=32)
+        trainer = make_trainer(config)
+        after, _ = jax.jit(trainer.run_chunk)(jax.jit(trainer.init)(jax.random.PRNGKey(0)))
+        policies.append(after.params["policy"])
+    before = make_trainer(_tiny_config()).init(jax.random.PRNGKey(0)).params["policy"]
+    moved = jax.tree.map(lambda a, b: float(np.max(np.abs(a - b))), policies[0], before)
+    assert max(jax.tree.leaves(moved)) > 1e-4  # 4 updates of lr 1e-3 moved the policy
+    chex.assert_trees_all_close(policies[0], policies[1], atol=1e-6, rtol=0)
+
+
 def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
     whole = cli.run(config, tmp_path / "whole", quiet=True)

@@ -19,8 +19,10 @@ the reward above and its loss to the objective, eq. (8) of the paper,
     eta * loss_A2C + lambda * L_F + (1 - lambda) * L_I,
 minimised jointly over ``params = {"policy": ..., "novelty": ...}`` by one Adam. The two groups
 share no parameters, so each group's gradient is clipped to its own global norm: the policy's at
-eta * max_grad_norm, which makes its clipped, Adam-normalised step the same as plain A2C's (Adam
-is invariant to the scale eta up to its epsilon), and the novelty model's at max_grad_norm.
+eta * max_grad_norm and with Adam's epsilon scaled by eta too, which makes its step exactly plain
+A2C's (Adam of (eta g, eta eps) is Adam of (g, eps)); the novelty model's at max_grad_norm.
+Scaling epsilon matters: the policy gradients of eta * loss_A2C are ~1e-6 per parameter, below
+Adam's usual 1e-5, which would otherwise shrink the policy's steps several-fold.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ from simjax.agents.config import TrainConfig
 from simjax.envs import make
 from simjax.networks import ActorCritic
 from simjax.novelty import METRICS as NOVELTY_METRICS
+
+ADAM_EPS = 1e-5
 from simjax.novelty import Novelty, make_novelty
 
 
@@ -124,14 +128,15 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
     """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
     env = make(config.env) if env is None else env
     network = ActorCritic(num_actions=env.action_size)
-    novelty = make_novelty(config, env.action_size) if novelty is None else novelty
+    novelty = make_novelty(config, env.action_size, env.observation_size) if novelty is None else novelty
     eta = config.policy_weight
 
-    def group(clip):
-        return optax.chain(optax.clip_by_global_norm(clip), optax.adam(config.learning_rate, eps=1e-5))
+    def group(scale):
+        clip, eps = scale * config.max_grad_norm, scale * ADAM_EPS
+        return optax.chain(optax.clip_by_global_norm(clip), optax.adam(config.learning_rate, eps=eps))
 
     tx = optax.multi_transform(
-        {"policy": group(eta * config.max_grad_norm), "novelty": group(config.max_grad_norm)},
+        {"policy": group(eta), "novelty": group(1.0)},
         {"policy": "policy", "novelty": "novelty"},
     )
     N, T = config.num_envs, config.rollout_len
