@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import walk
 
 from simjax.envs import TASK_NAMES, make, mywayhome_layout, mywayhome_map, tiny_layout
 from simjax.envs import motion, raycaster
@@ -97,19 +98,13 @@ def test_walls_must_be_axis_aligned():
         raycaster.Walls.from_rows([(0, 0, 10, 10, 0)])
 
 
-def _walk(env, key, actions):
-    """Step one env through ``actions``; return the stacked states."""
-    def body(s, a):
-        s = env.step(s, a)
-        return s, s
-    return jax.lax.scan(body, env.reset(key), actions)[1]
 
 
 def test_collision_never_through_walls():
     env = MazeEnv(mywayhome_layout(), MazeTask("t", max_steps=10_000), auto_reset=False)
     keys = jax.random.split(jax.random.PRNGKey(3), 16)
     actions = jax.random.choice(jax.random.PRNGKey(4), 4, (16, 400), p=jnp.array([0.15, 0.15, 0.65, 0.05]))
-    states = jax.jit(jax.vmap(_walk, (None, 0, 0)), static_argnums=0)(env, keys, actions)
+    states = jax.jit(jax.vmap(walk, (None, 0, 0)), static_argnums=0)(env, keys, actions)
     pos = np.asarray(states.pipeline_state.pose.pos).reshape(-1, 2)
     boxes = np.asarray(env.layout.boxes)
     r = env.motion_params.radius
@@ -152,7 +147,7 @@ def test_walking_speed_is_doom_like():
 def test_reward_and_termination_at_goal():
     env = MazeEnv(tiny_layout(), MazeTask("t", random_heading=False, heading=0.0, max_steps=50))
     # spawn (40, 64) facing east, goal at (200, 64): walking forward reaches it
-    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((20,), motion.FORWARD))
+    states = jax.jit(walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((20,), motion.FORWARD))
     reward, done = np.asarray(states.reward), np.asarray(states.done)
     t = int(np.argmax(done))
     assert done[t] == 1 and reward[t] == 1.0 and reward.sum() >= 1.0
@@ -168,7 +163,7 @@ def test_reward_and_termination_at_goal():
 
 def test_truncation_at_525_steps():
     env = make("maze-very-sparse")
-    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((530,), motion.NOOP))
+    states = jax.jit(walk, static_argnums=0)(env, jax.random.PRNGKey(0), jnp.full((530,), motion.NOOP))
     done = np.asarray(states.done)
     assert np.flatnonzero(done).tolist() == [524]  # the 525th step
     assert states.info["truncation"][524] == 1 and states.reward.sum() == 0
@@ -188,7 +183,7 @@ def test_fixed_and_random_spawns():
 def test_fresh_spawn_after_auto_reset():
     # 3-step episodes: every 3rd state is a new episode's start, drawn anew each time
     env = MazeEnv(mywayhome_layout(), MazeTask("t", max_steps=3))
-    states = jax.jit(_walk, static_argnums=0)(env, jax.random.PRNGKey(7), jnp.full((60,), motion.NOOP))
+    states = jax.jit(walk, static_argnums=0)(env, jax.random.PRNGKey(7), jnp.full((60,), motion.NOOP))
     starts = np.asarray(states.pipeline_state.pose.heading)[np.asarray(states.done) > 0]
     assert starts.size == 20
     assert np.unique(np.round(starts, 4)).size == 20  # brax's AutoResetWrapper would give 1

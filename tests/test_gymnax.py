@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import walk
 
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer, summarize
@@ -30,17 +31,12 @@ def test_adapter_shapes_dtypes_and_determinism(name, shape, actions):
     assert not np.array_equal(np.asarray(other.obs), np.asarray(s.obs))
 
 
-def _walk(env, key, actions):
-    def body(s, a):
-        s = env.step(s, a)
-        return s, s
-    return jax.lax.scan(body, env.reset(key), actions)[1]
 
 
 def test_adapter_auto_resets_and_marks_truncation_and_termination():
     # a 5-step time limit: alternating pushes keep the pole up that long, so every end is a truncation
     env = GymnaxEnv("CartPole-v1", max_steps_in_episode=5)
-    states = jax.jit(lambda k, a: _walk(env, k, a))(jax.random.PRNGKey(0), jnp.tile(jnp.array([0, 1]), 10))
+    states = jax.jit(lambda k, a: walk(env, k, a))(jax.random.PRNGKey(0), jnp.tile(jnp.array([0, 1]), 10))
     done = np.asarray(states.done)
     assert np.flatnonzero(done).tolist() == [4, 9, 14, 19]
     assert (np.asarray(states.info["truncation"])[done > 0] == 1).all()
@@ -48,7 +44,7 @@ def test_adapter_auto_resets_and_marks_truncation_and_termination():
     assert (np.asarray(states.metrics["episode_return"])[done > 0] == 5).all()
     assert int(states.pipeline_state.steps[4]) == 0  # the state after an end is a new episode's
     # pushing one way only topples the pole: a termination, not a truncation
-    states = jax.jit(lambda k, a: _walk(env.__class__("CartPole-v1"), k, a))(jax.random.PRNGKey(0), jnp.ones(60, jnp.int32))
+    states = jax.jit(lambda k, a: walk(env.__class__("CartPole-v1"), k, a))(jax.random.PRNGKey(0), jnp.ones(60, jnp.int32))
     done = np.asarray(states.done)
     t = int(np.argmax(done))
     assert done[t] == 1 and 5 < t < 40 and states.info["truncation"][t] == 0

@@ -9,16 +9,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import walk
 
 from simjax.envs import make, melon, motion, raycaster
 from simjax.envs.explore_goals import ExploreGoalsEnv, GridGraph, MazeGenerator, random_spanning_tree
 
 
-def _walk(env, state, actions):
-    def body(s, a):
-        s = env.step(s, a)
-        return s, s
-    return jax.lax.scan(body, state, actions)[1]
 
 
 def _placed(env, x, y, degrees, key=0):
@@ -41,8 +37,8 @@ YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
 # ---- melon ---------------------------------------------------------------------------------
 def test_melon_apples_pay_once_each_and_lead_to_a_dead_end():
     env = make("melon")
-    walk = jax.jit(lambda s, a: _walk(env, s, a))
-    states = walk(_placed(env, -120.0, 448.0, 180.0), jnp.full((60,), motion.FORWARD))
+    run = jax.jit(lambda s, a: walk(env, s, a))
+    states = run(_placed(env, -120.0, 448.0, 180.0), jnp.full((60,), motion.FORWARD))
     reward = np.asarray(states.reward)
     assert reward.sum() == len(melon.APPLES_XY) == 6 and set(reward[reward != 0]) == {1.0}
     assert np.asarray(states.done).sum() == 0  # the dead end ends nothing
@@ -53,10 +49,10 @@ def test_melon_apples_pay_once_each_and_lead_to_a_dead_end():
 
 def test_melon_lemon_costs_one_and_the_melon_ends_the_episode():
     env = make("melon")
-    walk = jax.jit(lambda s, a: _walk(env, s, a))
-    lemon = walk(_placed(env, 150.0, 448.0, 0.0), jnp.full((15,), motion.FORWARD))
+    run = jax.jit(lambda s, a: walk(env, s, a))
+    lemon = run(_placed(env, 150.0, 448.0, 0.0), jnp.full((15,), motion.FORWARD))
     assert np.asarray(lemon.reward).sum() == -1.0 and np.asarray(lemon.done).sum() == 0
-    states = walk(_placed(env, 704.0, 600.0, 90.0), jnp.full((30,), motion.FORWARD))
+    states = run(_placed(env, 704.0, 600.0, 90.0), jnp.full((30,), motion.FORWARD))
     done = np.asarray(states.done)
     t = int(np.argmax(done))
     assert done[t] == 1 and states.reward[t] == 20.0 and np.asarray(states.reward)[:t].sum() == 0
@@ -70,7 +66,7 @@ def test_melon_lemon_costs_one_and_the_melon_ends_the_episode():
 def test_melon_has_three_actions_and_525_steps():
     env = make("melon")
     assert env.action_size == 3 and env.task.max_steps == 525
-    states = jax.jit(lambda s, a: _walk(env, s, a))(env.reset(jax.random.PRNGKey(0)), jnp.zeros((525,), jnp.int32))
+    states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(0)), jnp.zeros((525,), jnp.int32))
     assert np.flatnonzero(np.asarray(states.done)).tolist() == [524]
     assert states.info["truncation"][524] == 1 and states.metrics["episode_success"][524] == 0
 
@@ -172,7 +168,7 @@ def test_generator_rejects_bad_settings():
 # ---- explore-goals: the task ---------------------------------------------------------------
 def test_explore_goals_new_maze_each_episode_same_maze_within():
     env = ExploreGoalsEnv(max_steps=4)
-    states = jax.jit(lambda s, a: _walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
+    states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
     standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
     done = np.asarray(states.done)
     assert np.flatnonzero(done).tolist() == [3, 7, 11]
@@ -206,8 +202,8 @@ def test_explore_goals_agents_never_cross_a_standing_wall():
     env = ExploreGoalsEnv(max_steps=10_000)
     keys = jax.random.split(jax.random.PRNGKey(5), 8)
     actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
-    walk = jax.jit(jax.vmap(lambda k, a: _walk(env, env.reset(k), a)))
-    states = walk(keys, actions)
+    run = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))
+    states = run(keys, actions)
     r = env.motion_params.radius
     for i in range(8):
         boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
@@ -233,3 +229,25 @@ def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
     chex.assert_tree_all_finite(s2.pipeline_state.pose)
     chex.assert_trees_all_equal(s2, step(reset(keys), jnp.array([0, 1, 2, 2])))
     assert env.action_size == actions and env.observation_size == (42, 42, 3)
+
+
+def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
+    env = make("explore-goals")
+    gen = env.generator
+    keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
+    old = jax.vmap(jax.vmap(lambda k: gen.generate(k, env.layout)))(keys)
+    new_keys = jax.random.split(jax.random.PRNGKey(9), 6).reshape(2, 3, 2)
+    done = jnp.array([[False, True, False], [False, False, True]])
+    one = lambda x: x[None]
+    per_env = lambda k, d, w: jax.tree.map(lambda x: x[0], env._regenerate(one(k), one(d), jax.tree.map(one, w)))
+    fn = jax.jit(jax.vmap(jax.vmap(per_env)))
+    out = fn(new_keys, done, old)
+    expected = jax.vmap(jax.vmap(lambda k: gen.generate(k, env.layout)))(new_keys)
+    for i in range(2):
+        for j in range(3):
+            got = jax.tree.map(lambda x: x[i, j], out)
+            want = jax.tree.map(lambda x: x[i, j], expected if done[i, j] else old)
+            chex.assert_trees_all_equal(got, want)
+    chex.assert_trees_all_equal(fn(new_keys, jnp.zeros_like(done), old), old)
+    # the generation stays behind a real conditional after both vmaps (not a select that always runs)
+    assert "cond[" in str(jax.make_jaxpr(jax.vmap(jax.vmap(per_env)))(new_keys, done, old))

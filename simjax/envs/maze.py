@@ -173,10 +173,7 @@ class MazeEnv(Env):
         if not self.auto_reset:
             key = ms.key
         else:
-            fresh_pose, fresh_world = self._start(sub)
-            pose, world = jax.tree.map(
-                lambda new, old: jnp.where(done, new, old), (fresh_pose, fresh_world), (pose, world)
-            )
+            pose, world = self._restart(sub, done, pose, world)
             collected = collected & ~done
             steps = jnp.where(done, 0, steps)
             ep_return = jnp.where(done, 0.0, ep_return)
@@ -209,6 +206,11 @@ class MazeEnv(Env):
     def _start(self, key: jax.Array) -> tuple[motion.Pose, Layout | None]:
         """An episode's first pose and map (None: the env's own layout)."""
         return self._spawn(key), None
+
+    def _restart(self, key, done, pose, world):
+        """Auto-reset: (pose, world) of a new episode where ``done``, else as they are."""
+        fresh = self._start(key)
+        return jax.tree.map(lambda new, old: jnp.where(done, new, old), fresh, (pose, world))
 
     def _on_touch(self, key, pose, world, collected):
         """What touching items does besides reward and ending: nothing, for a fixed map."""
