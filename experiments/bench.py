@@ -2,7 +2,12 @@
 
 Measures, each as the median of several calls of one compiled program (compile time apart):
 - the environment alone (Doom-like motion, 4 tics, plus one render per agent step, random
-  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second;
+  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second; and at
+  1024 environments for ``melon`` and ``explore-goals``;
+- maze generation alone (``explore-goals``: spanning tree, loops, looks, walls and boxes), as
+  mazes per second for 9x9 and 11x11 cells, and its share of the ``explore-goals`` env's time
+  (one maze per env per 1350-step episode: the env generates only on steps where an episode
+  ends, see ``explore_goals.regenerate_where_done``);
 - the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
   agent steps per second, with XLA's own FLOP count per agent step and the share of the
   machine's measured float32 matmul peak that gives;
@@ -62,6 +67,15 @@ def bench_env(task: str, num_envs: int, steps: int = 64) -> dict:
 
     compile_s, med, _ = time_call(run, state, jax.random.PRNGKey(1))
     return {"envs": num_envs, "steps_per_s": num_envs * steps / med, "compile_s": compile_s}
+
+
+def bench_maze_generation(cells: int, num: int = 1024) -> dict:
+    from simjax.envs.explore_goals import MazeGenerator
+
+    gen = MazeGenerator(cells=cells)
+    keys = jax.random.split(jax.random.PRNGKey(0), num)
+    compile_s, med, _ = time_call(jax.vmap(gen.generate), keys)
+    return {"cells": cells, "mazes_per_s": num / med, "compile_s": compile_s}
 
 
 def _xla_flops(fn, *args) -> float:
@@ -158,6 +172,9 @@ def main(argv=None) -> int:
     started = time.time()
     peak = matmul_peak()
     envs = [bench_env(args.task, n) for n in (256, 1024, 4096)]
+    worlds = {task: bench_env(task, 1024) for task in ("melon", "explore-goals")}
+    world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
+    mazes = [bench_maze_generation(c) for c in (9, 11)]
     trains = [bench_train(args.task, n) for n in (16, 32, 64)]
     novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm")]
     lines = [
@@ -171,10 +188,18 @@ def main(argv=None) -> int:
     ]
     for r in envs:
         lines.append(f"| environment (motion + render) | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
+    for task, r in worlds.items():
+        lines.append(f"| environment, `{task}` | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
     for r in trains:
         share = r["flops_per_step"] * r["steps_per_s"] / peak
         lines.append(
             f"| A2C training loop | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | "
+            f"{r['flops_per_step'] / 1e6:.1f} M | {100 * share:.0f}% |"
+        )
+    for task, r in world_trains.items():
+        share = r["flops_per_step"] * r["steps_per_s"] / peak
+        lines.append(
+            f"| A2C training loop, `{task}` | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | "
             f"{r['flops_per_step'] / 1e6:.1f} M | {100 * share:.0f}% |"
         )
     for r in novelties:
@@ -187,6 +212,13 @@ def main(argv=None) -> int:
               "alone, as a share of one whole update (rollout, both losses, gradients, Adam):", ""]
     lines += [f"- {r['algo'].upper()} (N={r['envs']}, T=20{', H=10, L=3' if r['algo'] == 'sim' else ''}): "
               f"{100 * r['novelty_share']:.0f}%" for r in novelties]
+    per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
+    lines += ["", "Maze generation alone (`explore-goals`, 1024 mazes per call, `vmap`):", ""]
+    lines += [f"- {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
+              + (f"; one maze per 1350-step episode is {100 * (1.0 / r['mazes_per_s']) / 1350 / per_step:.2f}% "
+                 "of the `explore-goals` env's time (the env steps above include no episode end)"
+                 if r["cells"] == 9 else "")
+              for r in mazes]
     lines += [
         "",
         "FLOPs per agent step: XLA's cost analysis of one network step forward (acting) plus (T+1)/T",

@@ -1,6 +1,9 @@
-"""Draw the README's figures: the MyWayHome map from above and first-person frames.
+"""Draw the README's figures: the maps from above and first-person frames.
 
-    python experiments/draw_figures.py   # writes docs/mywayhome_topdown.png, docs/frames.png
+    python experiments/draw_figures.py
+writes docs/mywayhome_topdown.png, docs/frames.png (MyWayHome), docs/melon.png (the melon map
+and three views), docs/explore_goals.png (three generated mazes from above, each with the
+agent's first frame) and docs/task_frames.png (one first-person frame from each task).
 """
 
 from __future__ import annotations
@@ -8,13 +11,14 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simjax.envs import make, mywayhome_map  # noqa: E402
+from simjax.envs import make, melon, mywayhome_map  # noqa: E402
 from simjax.envs.motion import Pose  # noqa: E402
 from simjax.envs.topdown import draw_topdown  # noqa: E402
 
@@ -49,6 +53,68 @@ def main():
     fig.tight_layout()
     fig.savefig(DOCS / "frames.png", dpi=110)
     print(f"wrote {DOCS / 'mywayhome_topdown.png'} and {DOCS / 'frames.png'}")
+    draw_melon()
+    draw_explore_goals()
+    draw_task_frames()
+
+
+def _pose(x, y, deg):
+    return Pose(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(deg)), jnp.zeros(2))
+
+
+MELON_VIEWS = [  # (caption, x, y, heading in degrees)
+    ("start, facing north", *melon.START_XY, 90.0),
+    ("junction, facing the apples", 0.0, 448.0, 180.0),
+    ("east arm, facing the lemon", 200.0, 448.0, 0.0),
+    ("round the corner: the melon", 704.0, 640.0, 90.0),
+]
+
+
+def draw_melon():
+    env = make("melon")
+    fig, axes = plt.subplots(1, 1 + len(MELON_VIEWS), figsize=(3.2 * (1 + len(MELON_VIEWS)), 3.4),
+                             gridspec_kw={"width_ratios": [1.6] + [1] * len(MELON_VIEWS)})
+    draw_topdown(env.layout, ax=axes[0], title="melon (Stairway to Melon)")
+    for ax, (caption, x, y, deg) in zip(axes[1:], MELON_VIEWS):
+        ax.imshow(env.render(_pose(x, y, deg)), interpolation="nearest")
+        ax.set_title(caption, fontsize=8)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(DOCS / "melon.png", dpi=110)
+    print(f"wrote {DOCS / 'melon.png'}")
+
+
+def draw_explore_goals(seeds=(0, 1, 2)):
+    env = make("explore-goals")
+    fig, axes = plt.subplots(2, len(seeds), figsize=(3.6 * len(seeds), 7), gridspec_kw={"height_ratios": [1.3, 1]})
+    for col, seed in enumerate(seeds):
+        state = jax.jit(env.reset)(jax.random.PRNGKey(seed))
+        ms = state.pipeline_state
+        x, y = (float(v) for v in ms.pose.pos)
+        draw_topdown(ms.world, ax=axes[0, col], pose=(x, y, float(ms.pose.heading)), spawns=False,
+                     title=f"explore-goals, key {seed}")
+        if col < len(seeds) - 1:
+            axes[0, col].get_legend().remove()
+        axes[1, col].imshow(state.obs, interpolation="nearest")
+        axes[1, col].set_title("the agent's first frame", fontsize=8)
+        axes[1, col].axis("off")
+    fig.tight_layout()
+    fig.savefig(DOCS / "explore_goals.png", dpi=110)
+    print(f"wrote {DOCS / 'explore_goals.png'}")
+
+
+def draw_task_frames():
+    tasks = [("maze-very-sparse", "maze-very-sparse: the start"),
+             ("melon", "melon: the start"),
+             ("explore-goals", "explore-goals: a start")]
+    fig, axes = plt.subplots(1, len(tasks), figsize=(3 * len(tasks), 3.3))
+    for ax, (task, caption) in zip(axes, tasks):
+        ax.imshow(jax.jit(make(task).reset)(jax.random.PRNGKey(3)).obs, interpolation="nearest")
+        ax.set_title(caption, fontsize=8)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(DOCS / "task_frames.png", dpi=110)
+    print(f"wrote {DOCS / 'task_frames.png'}")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
     python experiments/summarize_results.py experiments/results/very-sparse-*
 
 Per run and seed: agent steps trained, success ratio and mean episode length over the first
-and the last ~100k steps (4 log rows), policy entropy and mean bonus per step over the last
-rows, and the best single row's success ratio.
+and the last ~100k steps (4 log rows), the same for the extrinsic episode return (what
+`melon` and `explore-goals` are judged by), policy entropy and mean bonus per step over the
+last rows, and the best single row's success ratio.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ def summarize_run(run_dir: Path, rows: int = 4) -> list[str]:
         lines.append(
             f"| {run_dir.name} | {seed} | {int(cols['env_steps'][-1]):,} | {mean('success_ratio', 'first'):.3f} | "
             f"{mean('success_ratio', 'last'):.3f} | {np.nanmax(cols['success_ratio']):.3f} | "
+            f"{mean('mean_extrinsic_return', 'first'):.2f} | {mean('mean_extrinsic_return', 'last'):.2f} | "
             f"{mean('mean_episode_length', 'last'):.0f} | {mean('entropy', 'last'):.3f} | {mean('bonus_mean', 'last'):.4f} |"
         )
     return lines
@@ -35,8 +37,8 @@ def summarize_run(run_dir: Path, rows: int = 4) -> list[str]:
 
 def main(argv: list[str]) -> int:
     print("| run | seed | agent steps | success, first 4 rows | success, last 4 rows | best row | "
-          "episode length, last 4 | entropy, last 4 | bonus per step, last 4 |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "return, first 4 | return, last 4 | episode length, last 4 | entropy, last 4 | bonus per step, last 4 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for arg in argv:
         for line in summarize_run(Path(arg)):
             print(line)

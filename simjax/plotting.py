@@ -1,4 +1,7 @@
-"""Learning curves from a run folder's metrics.csv (the paper's two measures)."""
+"""Learning curves from a run folder's metrics.csv (the paper's two measures).
+
+Panels: success ratio; mean episode length, or the mean episode return where returns are
+more than success (melon, explore-goals, gymnax); the mean bonus per step if there is one."""
 
 from __future__ import annotations
 
@@ -29,15 +32,20 @@ def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
 
     by_seed = read_metrics(run_dir)
     with_bonus = any(max(cols.get("bonus_mean", [0.0])) > 0 for cols in by_seed.values())
+    returns = any(
+        abs(r - s) > 1e-6 for cols in by_seed.values()
+        for r, s in zip(cols["mean_extrinsic_return"], cols["success_ratio"]) if r == r
+    )
+    second = ("mean_extrinsic_return", "mean episode return") if returns else ("mean_episode_length", "mean episode length")
     fig, axes = plt.subplots(1, 3 if with_bonus else 2, figsize=(15 if with_bonus else 10, 3.6))
     for seed, cols in sorted(by_seed.items()):
         steps = cols["env_steps"]
         axes[0].plot(steps, cols["success_ratio"], label=f"seed {seed}")
-        axes[1].plot(steps, cols["mean_episode_length"], label=f"seed {seed}")
+        axes[1].plot(steps, cols[second[0]], label=f"seed {seed}")
         if with_bonus:
             axes[2].plot(steps, cols["bonus_mean"], label=f"seed {seed}")
     axes[0].set(xlabel="agent steps", ylabel="success ratio", ylim=(-0.02, 1.02))
-    axes[1].set(xlabel="agent steps", ylabel="mean episode length")
+    axes[1].set(xlabel="agent steps", ylabel=second[1])
     if with_bonus:
         axes[2].set(xlabel="agent steps", ylabel="mean bonus per step (beta r+)", yscale="log")
     axes[0].legend(fontsize=8)
