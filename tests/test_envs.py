@@ -232,3 +232,29 @@ def test_topdown_drawing_shows_walls_goal_and_agent(tmp_path):
     assert [1040.0, -352.0] in offsets and len(offsets) == 17 + 1  # spawns + goal
     ax.figure.savefig(tmp_path / "map.png")
     assert (tmp_path / "map.png").stat().st_size > 5_000
+
+
+def test_fine_patterns_are_box_filtered_not_aliased():
+    from simjax.envs.raycaster import _filtered_square
+
+    x = jnp.linspace(-3.0, 3.0, 601)
+    point = 1.0 - 2.0 * jnp.mod(jnp.floor(x), 2.0)
+    np.testing.assert_array_equal(np.asarray(_filtered_square(x, jnp.zeros_like(x))), np.asarray(point))
+    np.testing.assert_allclose(np.asarray(_filtered_square(x, jnp.full_like(x, 2.0))), 0.0, atol=1e-5)  # a whole period
+    # numeric mean over the footprint agrees
+    fine = jnp.linspace(0.3 - 0.35, 0.3 + 0.35, 70001)
+    assert float(_filtered_square(jnp.float32(0.3), jnp.float32(0.7))) == pytest.approx(
+        float(jnp.mean(1.0 - 2.0 * jnp.mod(jnp.floor(fine), 2.0))), abs=1e-3)
+    # a far wall of 8-unit stripes (SFALL2, look 7): a 2-unit sideways step barely changes the
+    # frame (point sampling made it flicker: every stripe is finer than a pixel out there)
+    rows = [(0, -400, 900, -400, 8), (900, -400, 900, 400, 7), (900, 400, 0, 400, 8), (0, 400, 0, -400, 8)]
+    walls = raycaster.Walls.from_rows(rows)
+    nothing = raycaster.Sprites(jnp.zeros((1, 2)), jnp.zeros((1,), jnp.int32), jnp.zeros((1,), bool))
+    frame = lambda y: np.asarray(raycaster.render(walls, jnp.array([100.0, y]), jnp.float32(0.0), nothing)).astype(int)
+    a, b = frame(0.0), frame(2.0)
+    far_wall = slice(19, 22), slice(14, 28)  # rows and columns showing only the far wall
+    assert np.abs(a[far_wall] - b[far_wall]).max() <= 6  # point sampling: 21
+    # and the wall shows the blend of its two colours, not one of them
+    base, alt = (np.asarray(c) for c in raycaster.TEXTURE_LOOKS[7][:2])
+    mean = a[far_wall].reshape(-1, 3).mean(0)
+    assert np.all(mean < base.max() * 255) and np.all(np.abs(mean - mean.mean()) < 255)

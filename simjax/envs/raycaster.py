@@ -218,6 +218,32 @@ class Sprites(NamedTuple):
         return Sprites(jnp.asarray(xy, jnp.float32).reshape(1, 2), jnp.full((1,), look, jnp.int32), jnp.ones((1,), bool))
 
 
+def _filtered_square(x, width):
+    """Mean over [x - width/2, x + width/2] of the square wave that is +1 where floor(x) is even
+    and -1 where odd: the pattern as a pixel of that footprint sees it (a box filter).
+
+    Point-sampling a pattern finer than a pixel aliases: the frame then flickers as the agent
+    moves by less than a pixel, which a novelty model can never learn to predict (a "noisy TV";
+    SIM and RND agents were drawn to the room of narrow light stripes and stayed there). The
+    paper's frames are ViZDoom's, downsampled to 42x42, which averages such patterns; this is
+    that average. Uses the integral of the wave, the triangle T(x) = 1 - |x mod 2 - 1|."""
+    tri = lambda t: 1.0 - jnp.abs(jnp.mod(t, 2.0) - 1.0)
+    point = 1.0 - 2.0 * jnp.mod(jnp.floor(x), 2.0)
+    safe = jnp.maximum(width, 1e-3)
+    mean = (tri(x + 0.5 * safe) - tri(x - 0.5 * safe)) / safe
+    return jnp.where(width < 1e-3, point, mean)
+
+
+def _footprint_along(u, wall, per_unit_depth):
+    """(W,) how far along its wall each column's pixel reaches: the change of u to a neighbour
+    column on the same wall (the smaller one), else the footprint facing the wall head-on."""
+    inf = jnp.full((1,), jnp.inf, u.dtype)
+    same = wall[1:] == wall[:-1]
+    step = jnp.where(same, jnp.abs(u[1:] - u[:-1]), jnp.inf)
+    nearest = jnp.minimum(jnp.concatenate([step, inf]), jnp.concatenate([inf, step]))
+    return jnp.where(jnp.isfinite(nearest), nearest, per_unit_depth)
+
+
 def _fog(dist, camera: Camera):
     return jnp.clip(1.0 - dist / camera.fog_distance, 0.25, 1.0)
 
@@ -265,17 +291,19 @@ def render(
     e = walls.end[wall] - walls.start[wall]
     # walls running along x are drawn a little darker than walls running along y
     shade = jnp.where(jnp.abs(e[:, 0]) > jnp.abs(e[:, 1]), 0.8, 1.0) * _fog(depth, camera)
-    wall_base = _to_u8(base[tex] * shade[:, None])  # (W, 3)
-    wall_alt = _to_u8(alt[tex] * shade[:, None])
-    u_band = jnp.floor(u / period_u[tex]).astype(jnp.int32)  # (W,)
+    wall_base = base[tex] * shade[:, None]  # (W, 3)
+    wall_alt = alt[tex] * shade[:, None]
+    # the pattern, box-filtered over each pixel's footprint on the wall (see _filtered_square)
+    along = _filtered_square(u / period_u[tex], _footprint_along(u, wall, depth / f) / period_u[tex])  # (W,)
 
     # per pixel: the world height each pixel sees on its column's wall
     yc = jnp.asarray(np.arange(H) + 0.5 - H / 2.0, jnp.float32)[:, None]  # (H, 1)
     height = camera.eye_height - yc * (depth / f)[None, :]  # (H, W)
     is_wall = (height >= 0.0) & (height <= camera.wall_height)
-    v_band = jnp.floor(height * (1.0 / period_v[tex])[None, :]).astype(jnp.int32)
-    use_alt = ((u_band[None, :] + v_band) & 1) == 1
-    wall_rgb = jnp.where(use_alt[..., None], wall_alt[None], wall_base[None])  # (H, W, 3)
+    inv_pv = (1.0 / period_v[tex])[None, :]
+    up = _filtered_square(height * inv_pv, (depth / f)[None, :] * inv_pv)  # (H, W)
+    alt_share = 0.5 * (1.0 - along[None, :] * up)  # 1 where exactly one of the two bands is odd
+    wall_rgb = _to_u8(wall_base[None] + (wall_alt - wall_base)[None] * alt_share[..., None])  # (H, W, 3)
     rgb = jnp.where(is_wall[..., None], wall_rgb, jnp.asarray(_plane_rows(camera))[:, None, :])
     return _draw_sprites(rgb, depth, pos, heading, sprites, camera)
 

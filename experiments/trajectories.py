@@ -1,0 +1,122 @@
+"""Where a trained policy goes: one episode per environment from a run's checkpoint, drawn
+from above, with how much of the map it covers and how close it gets to the goal.
+
+    python experiments/trajectories.py RUN_DIR [--envs 16] [--random]
+
+Writes RUN_DIR/trajectories.png (the first seed's episodes) and prints, per seed: success
+ratio, the mean over episodes of the number of 64x64-unit squares visited, and of the
+closest approach to the goal (units). ``--random`` adds the uniform random policy for
+comparison. Tasks with a fixed map only (the maze-* tasks and melon).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from simjax.agents import make_trainer
+from simjax.agents.a2c import starts_episode
+from simjax.envs import make
+from simjax.train import load_checkpoint, load_config
+
+
+def episodes(env, network, params, key, num_envs: int):
+    """Positions (T, N, 2) and whether each env reached the goal, one episode each
+    (``params`` None: uniform random actions)."""
+    k_reset, k_act = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
+
+    def step(carry_state, k):
+        state, carry, alive = carry_state
+        if params is None:
+            action = jax.random.randint(k, (num_envs,), 0, env.action_size)
+        else:
+            carry, logits, _ = network.apply(params, carry, state.obs[None], starts_episode(state)[None])
+            action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
+        pos = state.pipeline_state.pose.pos
+        state = jax.vmap(env.step)(state, action)
+        success = alive & (state.metrics["episode_success"] > 0) & (state.done > 0)
+        alive = alive & (state.done == 0)
+        return (state, carry, alive), (pos, alive, success)
+
+    carry = network.initial_carry(num_envs)
+    alive = jnp.ones((num_envs,), bool)
+    keys = jax.random.split(k_act, env.task.max_steps)
+    _, (pos, alive, success) = jax.lax.scan(step, (state, carry, alive), keys)
+    return pos, alive, success.any(axis=0)
+
+
+def coverage(pos, alive, goal, square: float = 64.0):
+    """(squares visited, closest approach to the goal) per env, over its first episode."""
+    squares, closest = [], []
+    for n in range(pos.shape[1]):
+        steps = np.concatenate([[True], alive[:-1, n]])  # the position before each step taken
+        p = pos[steps, n]
+        squares.append(len({tuple(s) for s in np.floor(p / square).astype(int).tolist()}))
+        closest.append(float(np.min(np.linalg.norm(p - goal, axis=1))))
+    return np.asarray(squares), np.asarray(closest)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run", type=Path)
+    parser.add_argument("--envs", type=int, default=16)
+    parser.add_argument("--random", action="store_true", help="also the uniform random policy")
+    args = parser.parse_args(argv)
+    if not (args.run / "checkpoint.msgpack").exists():
+        parser.error(f"{args.run} has no checkpoint.msgpack")
+    config = load_config(args.run)
+    env = make(config.env)
+    if getattr(env, "generator", None) is not None or not hasattr(env, "layout"):
+        parser.error(f"{config.env} has no fixed map to draw trajectories on")
+    trainer = make_trainer(config)
+    keys = jnp.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+    from flax import serialization
+
+    # only the policy parameters: they read the same from checkpoints of older env states
+    ckpt = load_checkpoint(args.run)
+    template = jax.eval_shape(jax.vmap(trainer.init), keys).params["policy"]
+    policy = serialization.from_state_dict(template, ckpt["runner"]["params"]["policy"])
+    goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
+    run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, args.envs))
+    drawn = None
+    policies = [(f"seed {s}", jax.tree.map(lambda x, i=i: x[i], policy))
+                for i, s in enumerate(ckpt["seeds"])]
+    if args.random:
+        run_random = jax.jit(lambda k: episodes(env, trainer.network, None, k, args.envs))
+    print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed, {args.envs} episodes each:")
+    for name, params in policies + ([("random", None)] if args.random else []):
+        key = jax.random.PRNGKey(123)
+        pos, alive, success = jax.device_get(run_random(key) if params is None else run(params, key))
+        squares, closest = coverage(np.asarray(pos), np.asarray(alive), goal)
+        print(f"  {name}: success {np.mean(success):.2f}, squares visited {squares.mean():.1f} "
+              f"(max {squares.max()}), closest to goal {closest.mean():.0f} units (min {closest.min():.0f})")
+        if drawn is None and params is not None:
+            drawn = (name, np.asarray(pos), np.asarray(alive))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from simjax.envs.topdown import draw_topdown
+
+    name, pos, alive = drawn
+    fig, ax = plt.subplots(figsize=(8, 6))
+    draw_topdown(env.layout, ax=ax, title=f"{args.run.name}, {name}: {args.envs} episodes")
+    for n in range(pos.shape[1]):
+        steps = np.concatenate([[True], alive[:-1, n]])
+        ax.plot(pos[steps, n, 0], pos[steps, n, 1], linewidth=0.8, alpha=0.7)
+    fig.tight_layout()
+    out = args.run / "trajectories.png"
+    fig.savefig(out, dpi=100)
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
