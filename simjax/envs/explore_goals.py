@@ -17,8 +17,8 @@ loop: each round every component picks its lightest edge out and the components 
 loop.
 
 A new maze is needed only where an episode ends, but under ``vmap`` a ``lax.cond`` on a per-env
-``done`` turns into a select that generates a maze for every env at every step (measured: that
-made a 1024-env step 2.5x slower). ``regenerate`` is a ``custom_vmap`` function instead: each
+``done`` turns into a select that generates a maze for every env at every step (measured under the
+same load: 6,300 vs 30,000 agent steps/s at 1024 envs). ``regenerate`` is a ``custom_vmap`` function instead: each
 ``vmap`` level folds its axis into one batch, and one ``lax.cond`` on "any env of the batch
 done" generates the batch's mazes only on steps where some episode ends (every 1350 steps
 when the envs started together). ``make bench`` measures both generation and the env step.
