@@ -44,7 +44,7 @@ def test_adapter_auto_resets_and_marks_truncation_and_termination():
     assert (np.asarray(states.metrics["episode_return"])[done > 0] == 5).all()
     assert int(states.pipeline_state.steps[4]) == 0  # the state after an end is a new episode's
     # pushing one way only topples the pole: a termination, not a truncation
-    states = jax.jit(lambda k, a: walk(env.__class__("CartPole-v1"), k, a))(jax.random.PRNGKey(0), jnp.ones(60, jnp.int32))
+    states = jax.jit(lambda k, a: walk(GymnaxEnv("CartPole-v1"), k, a))(jax.random.PRNGKey(0), jnp.ones(60, jnp.int32))
     done = np.asarray(states.done)
     t = int(np.argmax(done))
     assert done[t] == 1 and 5 < t < 40 and states.info["truncation"][t] == 0
