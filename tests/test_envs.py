@@ -98,6 +98,13 @@ def test_walls_must_be_axis_aligned():
         raycaster.Walls.from_rows([(0, 0, 10, 10, 0)])
 
 
+def test_walls_need_both_orientations():
+    # a map of vertical walls only once crashed the ray caster on an empty gather
+    with pytest.raises(ValueError, match="1 vertical, 0 horizontal"):
+        raycaster.Walls.from_rows([(0, 0, 0, 10, 0)])
+    raycaster.Walls.from_rows([(0, 0, 0, 10, 0), (0, 10, 10, 10, 0)])  # both: accepted
+
+
 
 
 def test_collision_never_through_walls():

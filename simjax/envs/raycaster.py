@@ -100,6 +100,9 @@ class Walls(NamedTuple):
         if not np.all(vertical | horizontal):
             raise ValueError("walls must be axis-aligned segments of non-zero length")
         v, h = np.flatnonzero(vertical), np.flatnonzero(horizontal)
+        if v.size == 0 or h.size == 0:  # cast_rays gathers the nearest hit from both sets
+            raise ValueError("a map needs at least one vertical and one horizontal wall "
+                             f"(got {v.size} vertical, {h.size} horizontal)")
         j = lambda a, dt=np.float32: jnp.asarray(np.asarray(a, dt))
         return Walls(
             start=j(arr[:, :2]), end=j(arr[:, 2:]), texture=j(tex, np.int32),
