@@ -1,0 +1,180 @@
+"""Does a trained novelty model point the way out? Its error (the bonus before beta) on short
+random walks from each of MyWayHome's 17 spawn spots, next to how often the run's own policy
+came near each spot.
+
+    python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
+
+For a maze-* run with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
+uniform random walks of ``--steps`` steps (random headings) are scored by the checkpoint's
+novelty model with its own running observation statistics; only transitions whose window lies
+wholly inside the walk count. The policy's side: 16 episodes per seed from the run's own task,
+and the fraction of them that came within 96 units of each spot.
+
+Prints per spot: distance from the maze-very-sparse start (spot 10), the policy's visit
+fraction, the mean error per seed; then per seed the Spearman correlation between visit
+fraction and error. A model that has learnt where the policy has been scores rarely visited
+spots higher (a negative correlation). Writes RUN_DIR/novelty_map.png: mean error per 32-unit
+square of the walks, one panel per seed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from trajectories import episodes  # noqa: E402
+
+from simjax.agents import make_trainer  # noqa: E402
+from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
+from simjax.novelty.base import build_timeline, init_memory, normalize_frames  # noqa: E402
+from simjax.train import load_checkpoint, load_config  # noqa: E402
+
+NEAR = 96.0  # units: "came near a spot"
+CELL = 32.0  # units: the map's squares
+
+
+def random_walks(env, key, num_envs: int, steps: int):
+    """obs (T, N, ...), actions (T, N), the frame after, positions (T+1, N, 2) and done (T, N)."""
+    k_reset, k_act = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
+    actions = jax.random.randint(k_act, (steps, num_envs), 0, env.action_size)
+
+    def step(state, action):
+        nxt = jax.vmap(env.step)(state, action)
+        return nxt, (state.obs, state.pipeline_state.pose.pos, nxt.done)
+
+    last, (obs, pos, done) = jax.lax.scan(step, state, actions)
+    pos = jnp.concatenate([pos, last.pipeline_state.pose.pos[None]], axis=0)
+    return obs, actions, last.obs, pos, done
+
+
+def spearman(a, b) -> float:
+    ra, rb = np.argsort(np.argsort(a)), np.argsort(np.argsort(b))
+    return float(np.corrcoef(ra, rb)[0, 1])
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run", type=Path)
+    parser.add_argument("--walks", type=int, default=16, help="random walks per spawn spot")
+    parser.add_argument("--steps", type=int, default=60, help="steps per walk")
+    args = parser.parse_args(argv)
+    if not (args.run / "checkpoint.msgpack").exists():
+        parser.error(f"{args.run} has no checkpoint.msgpack")
+    config = load_config(args.run)
+    if not config.env.startswith("maze-") or config.algo == "a2c":
+        parser.error("needs a maze-* run with a novelty model (sim, rnd, icm)")
+    trainer = make_trainer(config)
+    model = trainer.novelty.model
+    if args.steps <= model.history + 1:
+        parser.error(f"--steps must exceed the model's window ({model.history + 1} frames)")
+    keys = jnp.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+    ckpt = load_checkpoint(args.run, template=jax.eval_shape(jax.vmap(trainer.init), keys))
+    runner = ckpt["runner"]
+
+    spots = sorted(mywayhome_map.SPAWN_SPOTS)
+    xy = np.asarray([mywayhome_map.SPAWN_SPOTS[s] for s in spots])
+    start = np.asarray(mywayhome_map.SPAWN_SPOTS[10])
+
+    # the policy's side: which spots its own episodes come near
+    env = make(config.env)
+    policy_run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, 16))
+    visits = []
+    for i in range(config.num_seeds):
+        params = jax.tree.map(lambda x, i=i: x[i], runner.params["policy"])
+        pos, alive, _ = jax.device_get(policy_run(params, jax.random.PRNGKey(123)))
+        steps = np.concatenate([np.ones((1, pos.shape[1]), bool), alive[:-1]], axis=0)
+        near = np.zeros(len(spots))
+        for n in range(pos.shape[1]):
+            p = pos[steps[:, n], n]
+            near += (np.linalg.norm(p[:, None] - xy[None], axis=-1).min(axis=0) < NEAR)
+        visits.append(near / pos.shape[1])
+
+    # the model's side: error on random walks from every spot, with the run's frame statistics
+    obs, actions, last_obs, pos, ends = [], [], [], [], []
+    for j, s in enumerate(spots):
+        walk_env = MazeEnv(mywayhome_layout([s]), MazeTask(f"spot-{s}", random_heading=True))
+        o, a, lo, p, d = jax.jit(lambda k, e=walk_env: random_walks(e, k, args.walks, args.steps))(
+            jax.random.PRNGKey(1000 + j))
+        obs.append(o), actions.append(a), last_obs.append(lo), pos.append(p), ends.append(d)
+    obs, actions = jnp.concatenate(obs, axis=1), jnp.concatenate(actions, axis=1)
+    last_obs, pos = jnp.concatenate(last_obs, axis=0), np.concatenate(pos, axis=1)
+    # a walk that touches the goal ends its episode: it counts up to the step before
+    ongoing = np.cumsum(np.concatenate(ends, axis=1), axis=0) == 0
+    n = obs.shape[1]
+    reset = jnp.zeros(actions.shape, bool).at[0].set(True)
+    memory = init_memory(model.history, n, obs.shape[2:], obs.dtype)
+    tl, _ = build_timeline(memory, obs, reset, actions, last_obs, jnp.zeros((n,), bool))
+    full = np.arange(args.steps) >= model.history  # the whole window lies in the walk
+
+    @jax.jit
+    def score(params, obs_stats):
+        x = normalize_frames(tl.frames, obs_stats if config.obs_norm else None)
+        error, scored, _, _ = model.apply(params, tl, x)
+        return error, scored
+
+    errors = []
+    for i in range(config.num_seeds):
+        params = jax.tree.map(lambda x, i=i: x[i], runner.params["novelty"])
+        stats = jax.tree.map(lambda x, i=i: x[i], runner.novelty.obs_stats)
+        error, scored = jax.device_get(score(params, stats))
+        mask = np.asarray(scored) & full[:, None] & ongoing
+        errors.append((np.asarray(error), mask))
+
+    seeds = ckpt["seeds"]
+    print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed; {args.walks} random walks "
+          f"of {args.steps} steps per spot; visits: share of 16 policy episodes within {NEAR:.0f} units")
+    header = "spot  from start  " + "  ".join(f"visits s{s}  error s{s}" for s in seeds)
+    print(header)
+    per_spot = []
+    for i, (error, mask) in enumerate(errors):
+        e = error.reshape(args.steps, len(spots), args.walks)
+        m = mask.reshape(args.steps, len(spots), args.walks)
+        per_spot.append(np.asarray([e[:, j][m[:, j]].mean() for j in range(len(spots))]))
+    for j, s in enumerate(spots):
+        dist = np.linalg.norm(xy[j] - start)
+        cols = "  ".join(f"{visits[i][j]:9.2f}  {per_spot[i][j]:8.3f}" for i in range(len(seeds)))
+        print(f"{s:4d}  {dist:10.0f}  {cols}")
+    for i, s in enumerate(seeds):
+        dist = np.linalg.norm(xy - start, axis=1)
+        print(f"seed {s}: Spearman(visits, error) {spearman(visits[i], per_spot[i]):+.2f}, "
+              f"Spearman(distance from start, error) {spearman(dist, per_spot[i]):+.2f}")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from simjax.envs.topdown import draw_topdown
+
+    x0, y0, x1, y1 = mywayhome_map.BBOX
+    shape = (int(np.ceil((y1 - y0) / CELL)), int(np.ceil((x1 - x0) / CELL)))
+    target_pos = pos[1:]  # the error of step t belongs to the frame it led to
+    fig, axes = plt.subplots(1, len(seeds), figsize=(7 * len(seeds), 6.5), squeeze=False)
+    for ax, seed, (error, mask) in zip(axes[0], seeds, errors):
+        cells = np.floor((target_pos[mask] - np.asarray([x0, y0])) / CELL).astype(int)
+        grid_sum, grid_n = np.zeros(shape), np.zeros(shape)
+        np.add.at(grid_sum, (cells[:, 1], cells[:, 0]), error[mask])
+        np.add.at(grid_n, (cells[:, 1], cells[:, 0]), 1)
+        grid = np.where(grid_n > 0, grid_sum / np.maximum(grid_n, 1), np.nan)
+        image = ax.imshow(grid, origin="lower", cmap="viridis",
+                          extent=(x0, x0 + shape[1] * CELL, y0, y0 + shape[0] * CELL))
+        draw_topdown(make(config.env).layout, ax=ax,
+                     title=f"{args.run.name}, seed {seed}: novelty error on random walks")
+        fig.colorbar(image, ax=ax, label="error (bonus / beta)", orientation="horizontal", shrink=0.6, pad=0.03)
+    fig.tight_layout()
+    out = args.run / "novelty_map.png"
+    fig.savefig(out, dpi=100)
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
