@@ -3,6 +3,11 @@ same number of random-walk transitions inside that room only; a room whose forwa
 high after the same training is hard to predict, not merely unseen (a "noisy TV").
 
     python experiments/room_predictability.py [--spots 10 17 22 26] [--updates 400] [--chunks 8]
+        [--look-as I J]
+
+``--look-as I J`` draws wall texture I with texture J's look (``raycaster.TEXTURE_LOOKS``), to
+tell a room's look from its shape: e.g. ``--spots 22 --look-as 4 6`` gives the cyan room
+(TLITE6_1, texture 4) the grey room's SILVER2 bands.
 
 Each spot's walks start there with a random heading and last 60 steps (so they stay near
 it); 16 environments x 20-step rollouts per update, the default SIM (H = 10, L = 3, RND
@@ -23,7 +28,7 @@ import optax
 
 from simjax.agents import TrainConfig
 from simjax.agents.a2c import ADAM_EPS, starts_episode
-from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map
+from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, raycaster
 from simjax.novelty import make_novelty
 
 ROOMS = {10: "start (BIGDOOR2 panels)", 11: "tan (CEIL4_2 checker)", 17: "green (COMP01 bands)",
@@ -73,12 +78,22 @@ def main(argv=None) -> int:
     parser.add_argument("--updates", type=int, default=400, help="updates per room")
     parser.add_argument("--chunks", type=int, default=8, help="rows of the printed curve")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--look-as", type=int, nargs=2, metavar=("I", "J"), default=None,
+                        help="draw texture I with texture J's look")
     args = parser.parse_args(argv)
     unknown = [s for s in args.spots if s not in mywayhome_map.SPAWN_SPOTS]
     if unknown:
         parser.error(f"unknown spawn spots {unknown}; known: {sorted(mywayhome_map.SPAWN_SPOTS)}")
     if args.updates < args.chunks or args.chunks < 1:
         parser.error("need --updates >= --chunks >= 1")
+    if args.look_as is not None:
+        i, j = args.look_as
+        if not (0 <= i < raycaster.NUM_TEXTURES and 0 <= j < raycaster.NUM_TEXTURES):
+            parser.error(f"--look-as takes texture indices in [0, {raycaster.NUM_TEXTURES})")
+        looks = list(raycaster.TEXTURE_LOOKS)
+        looks[i] = looks[j]
+        raycaster.TEXTURE_LOOKS = tuple(looks)  # read when a frame is traced
+        print(f"texture {i} drawn with texture {j}'s look")
     config = TrainConfig(env="maze-very-sparse", algo="sim")
     per_chunk = args.updates // args.chunks
     steps = per_chunk * args.chunks * config.steps_per_update
