@@ -4,7 +4,7 @@ came near each spot.
 
     python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
 
-For a maze-* run with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
+For a run on a MyWayHome task (maze-dense, -sparse, -very-sparse) with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
 uniform random walks of ``--steps`` steps (random headings) are scored by the checkpoint's
 novelty model with its own running observation statistics; only transitions whose window lies
 wholly inside the walk count. The policy's side: 16 episodes per seed from the run's own task,
@@ -29,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from trajectories import episodes  # noqa: E402
+from trajectories import episodes, first_episode  # noqa: E402
 
 from simjax.agents import make_trainer  # noqa: E402
 from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
@@ -38,6 +38,7 @@ from simjax.train import load_checkpoint, load_config  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
+MYWAYHOME_TASKS = ("maze-dense", "maze-sparse", "maze-very-sparse")  # the tasks on this map
 
 
 def random_walks(env, key, num_envs: int, steps: int):
@@ -69,8 +70,8 @@ def main(argv=None) -> int:
     if not (args.run / "checkpoint.msgpack").exists():
         parser.error(f"{args.run} has no checkpoint.msgpack")
     config = load_config(args.run)
-    if not config.env.startswith("maze-") or config.algo == "a2c":
-        parser.error("needs a maze-* run with a novelty model (sim, rnd, icm)")
+    if config.env not in MYWAYHOME_TASKS or config.algo == "a2c":
+        parser.error(f"needs a run on {', '.join(MYWAYHOME_TASKS)} with a novelty model (sim, rnd, icm)")
     trainer = make_trainer(config)
     model = trainer.novelty.model
     if args.steps <= model.history + 1:
@@ -90,10 +91,9 @@ def main(argv=None) -> int:
     for i in range(config.num_seeds):
         params = jax.tree.map(lambda x, i=i: x[i], runner.params["policy"])
         pos, alive, _ = jax.device_get(policy_run(params, jax.random.PRNGKey(123)))
-        steps = np.concatenate([np.ones((1, pos.shape[1]), bool), alive[:-1]], axis=0)
         near = np.zeros(len(spots))
         for n in range(pos.shape[1]):
-            p = pos[steps[:, n], n]
+            p = first_episode(pos, alive, n)
             near += (np.linalg.norm(p[:, None] - xy[None], axis=-1).min(axis=0) < NEAR)
         visits.append(near / pos.shape[1])
 
@@ -166,7 +166,7 @@ def main(argv=None) -> int:
         grid = np.where(grid_n > 0, grid_sum / np.maximum(grid_n, 1), np.nan)
         image = ax.imshow(grid, origin="lower", cmap="viridis",
                           extent=(x0, x0 + shape[1] * CELL, y0, y0 + shape[0] * CELL))
-        draw_topdown(make(config.env).layout, ax=ax,
+        draw_topdown(env.layout, ax=ax,
                      title=f"{args.run.name}, seed {seed}: novelty error on random walks")
         fig.colorbar(image, ax=ax, label="error (bonus / beta)", orientation="horizontal", shrink=0.6, pad=0.03)
     fig.tight_layout()

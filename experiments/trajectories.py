@@ -51,12 +51,16 @@ def episodes(env, network, params, key, num_envs: int):
     return pos, alive, success.any(axis=0)
 
 
+def first_episode(pos, alive, n: int) -> np.ndarray:
+    """(K, 2): env ``n``'s position before each step it took in its first episode."""
+    return pos[np.concatenate([[True], alive[:-1, n]]), n]
+
+
 def coverage(pos, alive, goal, square: float = 64.0):
     """(squares visited, closest approach to the goal) per env, over its first episode."""
     squares, closest = [], []
     for n in range(pos.shape[1]):
-        steps = np.concatenate([[True], alive[:-1, n]])  # the position before each step taken
-        p = pos[steps, n]
+        p = first_episode(pos, alive, n)
         squares.append(len({tuple(s) for s in np.floor(p / square).astype(int).tolist()}))
         closest.append(float(np.min(np.linalg.norm(p - goal, axis=1))))
     return np.asarray(squares), np.asarray(closest)
@@ -109,8 +113,8 @@ def main(argv=None) -> int:
     fig, ax = plt.subplots(figsize=(8, 6))
     draw_topdown(env.layout, ax=ax, title=f"{args.run.name}, {name}: {args.envs} episodes")
     for n in range(pos.shape[1]):
-        steps = np.concatenate([[True], alive[:-1, n]])
-        ax.plot(pos[steps, n, 0], pos[steps, n, 1], linewidth=0.8, alpha=0.7)
+        p = first_episode(pos, alive, n)
+        ax.plot(p[:, 0], p[:, 1], linewidth=0.8, alpha=0.7)
     fig.tight_layout()
     out = args.run / "trajectories.png"
     fig.savefig(out, dpi=100)
