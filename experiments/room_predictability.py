@@ -32,7 +32,7 @@ from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, rayc
 from simjax.novelty import make_novelty
 
 ROOMS = {10: "start (BIGDOOR2 panels)", 11: "tan (CEIL4_2 checker)", 17: "green (COMP01 bands)",
-         22: "cyan (TLITE6_1 stripes)", 24: "grey (SILVER2 bands)", 26: "blue (SFALL2 stripes)",
+         22: "cyan (TLITE6_1 panels)", 24: "grey (SILVER2 bands)", 26: "blue (SFALL2 stripes)",
          13: "red (FLOOR1_6 bricks)"}
 
 

@@ -36,14 +36,18 @@ TEXTURE_LOOKS = (
     ((0.55, 0.35, 0.18), (0.38, 0.22, 0.10), 64.0, 64.0),
     # COMP01: green computer panels, horizontal bands
     ((0.20, 0.55, 0.30), (0.08, 0.30, 0.12), _STRIPE, 16.0),
-    # TLITE6_1: white-cyan lights, narrow vertical stripes
-    ((0.75, 0.95, 0.95), (0.40, 0.60, 0.65), 16.0, _STRIPE),
+    # TLITE6_1: white-cyan lights, soft vertical panels. It was 16-unit stripes of twice this
+    # contrast until 2026-11-24: a fresh SIM model then predicted its room worst of all seven
+    # (forward loss 10.9 vs 8.0-10.1) and a trained SIM agent settled there; now 6.1.
+    # `experiments/room_predictability.py` measures it.
+    ((0.75, 0.95, 0.95), (0.60, 0.80, 0.82), 32.0, _STRIPE),
     # FLOOR1_6: red-brown, wide bricks
     ((0.70, 0.25, 0.20), (0.45, 0.12, 0.10), 32.0, 16.0),
     # SILVER2: silver, broad horizontal bands
     ((0.80, 0.80, 0.85), (0.55, 0.55, 0.60), _STRIPE, 32.0),
-    # SFALL2: blue waterfall, thin vertical stripes
-    ((0.25, 0.40, 0.90), (0.12, 0.20, 0.60), 8.0, _STRIPE),
+    # SFALL2: blue waterfall, soft vertical stripes (8-unit ones of twice this contrast until
+    # 2026-11-24; its room's forward loss as above 9.5, now 8.8)
+    ((0.25, 0.40, 0.90), (0.18, 0.30, 0.75), 16.0, _STRIPE),
     # BIGBRIK1: the corridors' grey-brown brick
     ((0.55, 0.50, 0.45), (0.38, 0.34, 0.30), 64.0, 32.0),
     # spare looks
