@@ -38,8 +38,8 @@ TEXTURE_LOOKS = (
     ((0.20, 0.55, 0.30), (0.08, 0.30, 0.12), _STRIPE, 16.0),
     # TLITE6_1: white-cyan lights, soft vertical panels. It was 16-unit stripes of twice this
     # contrast until 2026-11-24: a fresh SIM model then predicted its room worst of all seven
-    # (forward loss 10.9 vs 8.0-10.1) and a trained SIM agent settled there; now 6.1.
-    # `experiments/room_predictability.py` measures it.
+    # (forward loss 10.9 vs 8.0-10.1; now 6.1, `experiments/room_predictability.py`). SIM
+    # agents settle in that room with either look (README, very-sparse results).
     ((0.75, 0.95, 0.95), (0.60, 0.80, 0.82), 32.0, _STRIPE),
     # FLOOR1_6: red-brown, wide bricks
     ((0.70, 0.25, 0.20), (0.45, 0.12, 0.10), 32.0, 16.0),
