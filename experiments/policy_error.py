@@ -31,6 +31,10 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from novelty_map import MYWAYHOME_TASKS
+
 from simjax.agents import make_trainer
 from simjax.agents.a2c import starts_episode
 from simjax.envs import make, mywayhome_map, raycaster
@@ -56,8 +60,8 @@ def main(argv=None) -> int:
     if args.chunks < 0 or args.chunk_updates < 1:
         parser.error("need --chunks >= 0 and --chunk-updates >= 1")
     config = load_config(args.run)
-    if config.algo == "a2c" or not config.env.startswith("maze-"):
-        parser.error("needs a run on a MyWayHome task (maze-dense, -sparse, -very-sparse) with a novelty model")
+    if config.algo == "a2c" or config.env not in MYWAYHOME_TASKS:
+        parser.error(f"needs a run on {', '.join(MYWAYHOME_TASKS)} with a novelty model (sim, rnd, icm)")
     if not 0 <= args.seed_index < config.num_seeds:
         parser.error(f"--seed-index must be in [0, {config.num_seeds})")
     trainer = make_trainer(config)
