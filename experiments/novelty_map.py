@@ -34,7 +34,7 @@ from trajectories import episodes, first_episode  # noqa: E402
 from simjax.agents import make_trainer  # noqa: E402
 from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames  # noqa: E402
-from simjax.train import load_checkpoint, load_config  # noqa: E402
+from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     model = trainer.novelty.model
     if args.steps <= model.history + 1:
         parser.error(f"--steps must exceed the model's window ({model.history + 1} frames)")
-    keys = jnp.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+    keys = seed_keys(config)
     ckpt = load_checkpoint(args.run, template=jax.eval_shape(jax.vmap(trainer.init), keys))
     runner = ckpt["runner"]
 

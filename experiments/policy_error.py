@@ -39,7 +39,7 @@ from simjax.agents import make_trainer
 from simjax.agents.a2c import starts_episode
 from simjax.envs import make, mywayhome_map, raycaster
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames
-from simjax.train import load_checkpoint, load_config
+from simjax.train import load_checkpoint, load_config, seed_keys
 
 NEAR = 128.0  # units
 NUM_ENVS = 16
@@ -66,7 +66,7 @@ def main(argv=None) -> int:
         parser.error(f"--seed-index must be in [0, {config.num_seeds})")
     trainer = make_trainer(config)
     model, network = trainer.novelty.model, trainer.network
-    keys = jnp.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+    keys = seed_keys(config)
     ckpt = load_checkpoint(args.run, template=jax.eval_shape(jax.vmap(trainer.init), keys))
     runner = jax.tree.map(lambda x: x[args.seed_index], ckpt["runner"])
     env = make(config.env)
@@ -78,10 +78,11 @@ def main(argv=None) -> int:
 
         def step(carry_state, k):
             state, carry = carry_state
-            carry, logits, _ = network.apply(runner.params["policy"], carry, state.obs[None], starts_episode(state)[None])
-            action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
             if random:
                 action = jax.random.randint(k, (n,), 0, env.action_size)
+            else:
+                carry, logits, _ = network.apply(runner.params["policy"], carry, state.obs[None], starts_episode(state)[None])
+                action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
             nxt = jax.vmap(env.step)(state, action)
             # how far the frame this step leads to sees: its farthest wall (through a door, a corridor)
             view = jax.vmap(lambda p, h: jnp.max(raycaster.cast_rays(env.layout.walls, p, h)[0]))(

@@ -23,7 +23,6 @@ import sys
 import time
 
 import jax
-import jax.numpy as jnp
 import optax
 
 from simjax.agents import TrainConfig

@@ -22,7 +22,7 @@ import numpy as np
 from simjax.agents import make_trainer
 from simjax.agents.a2c import starts_episode
 from simjax.envs import make
-from simjax.train import load_checkpoint, load_config
+from simjax.train import load_checkpoint, load_config, seed_keys
 
 
 def episodes(env, network, params, key, num_envs: int):
@@ -79,7 +79,7 @@ def main(argv=None) -> int:
     if getattr(env, "generator", None) is not None or not hasattr(env, "layout"):
         parser.error(f"{config.env} has no fixed map to draw trajectories on")
     trainer = make_trainer(config)
-    keys = jnp.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+    keys = seed_keys(config)
     from flax import serialization
 
     # only the policy parameters: they read the same from checkpoints of older env states

@@ -145,6 +145,13 @@ def load_config(run_dir: Path) -> TrainConfig:
     return TrainConfig(**json.loads(path.read_text())["config"])
 
 
+def seed_keys(config: TrainConfig):
+    """(num_seeds, 2) the PRNG keys a run's seeds start from: seed, seed + 1, ..."""
+    import jax
+
+    return jax.numpy.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+
+
 def load_checkpoint(run_dir: Path, template=None) -> dict:
     """The checkpoint as saved: {"runner": RunnerState of every seed (leading axis: seed),
     "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types."""
@@ -228,7 +235,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
 
     trainer = make_trainer(config)
     seeds = [config.seed + i for i in range(config.num_seeds)]
-    keys = jax.numpy.stack([jax.random.PRNGKey(s) for s in seeds])
+    keys = seed_keys(config)
     init = jax.vmap(trainer.init)
     done_steps, wall_before = 0, 0.0
     rows = [list(METRIC_COLUMNS)]
