@@ -11,8 +11,12 @@ wholly inside the walk count. The policy's side: 16 episodes per seed from the r
 and the fraction of them that came within 96 units of each spot.
 
 Prints per spot: distance from the maze-very-sparse start (spot 10), the policy's visit
-fraction, the mean error per seed; then per seed the Spearman correlation between visit
-fraction and error. A model that has learnt where the policy has been scores rarely visited
+fraction, the mean error per seed and, for models with a fixed RND target (sim, rnd), the
+target's *spread* there: half its summed variance over the walks' frames, which is the error
+of a model that predicts the spot's mean target. A room whose spread is high pays a high
+bonus at the same relative accuracy (the frames are normalised with the run's global running
+statistics, so a room of bright walls over a dark floor is "louder"). Then per seed the
+Spearman correlation between visit fraction and error. A model that has learnt where the policy has been scores rarely visited
 spots higher (a negative correlation). Writes RUN_DIR/novelty_map.png: mean error per 32-unit
 square of the walks, one panel per seed.
 """
@@ -34,6 +38,7 @@ from trajectories import episodes, first_episode  # noqa: E402
 from simjax.agents import make_trainer  # noqa: E402
 from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames  # noqa: E402
+from simjax.novelty.networks import RNDTarget  # noqa: E402
 from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
@@ -114,24 +119,32 @@ def main(argv=None) -> int:
     tl, _ = build_timeline(memory, obs, reset, actions, last_obs, jnp.zeros((n,), bool))
     full = np.arange(args.steps) >= model.history  # the whole window lies in the walk
 
+    has_target = "target" in runner.params["novelty"] and getattr(model, "target", "rnd") == "rnd"
+
     @jax.jit
     def score(params, obs_stats):
         x = normalize_frames(tl.frames, obs_stats if config.obs_norm else None)
         error, scored, _, _ = model.apply(params, tl, x)
-        return error, scored
+        target = RNDTarget().apply(params["target"], x[tl.history + 1 :]) if has_target else None
+        return error, scored, target
 
-    errors = []
+    errors, spreads = [], []
     for i in range(config.num_seeds):
         params = jax.tree.map(lambda x, i=i: x[i], runner.params["novelty"])
         stats = jax.tree.map(lambda x, i=i: x[i], runner.novelty.obs_stats)
-        error, scored = jax.device_get(score(params, stats))
+        error, scored, target = jax.device_get(score(params, stats))
         mask = np.asarray(scored) & full[:, None] & ongoing
         errors.append((np.asarray(error), mask))
+        if has_target:  # half the target's summed variance over each spot's scored frames
+            t = np.asarray(target).reshape(args.steps, len(spots), args.walks, -1)
+            m = mask.reshape(args.steps, len(spots), args.walks)
+            spreads.append(np.asarray([0.5 * t[:, j][m[:, j]].var(axis=0).sum() for j in range(len(spots))]))
 
     seeds = ckpt["seeds"]
     print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed; {args.walks} random walks "
           f"of {args.steps} steps per spot; visits: share of 16 policy episodes within {NEAR:.0f} units")
-    header = "spot  from start  " + "  ".join(f"visits s{s}  error s{s}" for s in seeds)
+    header = "spot  from start  " + "  ".join(
+        f"visits s{s}  error s{s}" + (f"  spread s{s}" if has_target else "") for s in seeds)
     print(header)
     per_spot = []
     for i, (error, mask) in enumerate(errors):
@@ -140,7 +153,8 @@ def main(argv=None) -> int:
         per_spot.append(np.asarray([e[:, j][m[:, j]].mean() for j in range(len(spots))]))
     for j, s in enumerate(spots):
         dist = np.linalg.norm(xy[j] - start)
-        cols = "  ".join(f"{visits[i][j]:9.2f}  {per_spot[i][j]:8.3f}" for i in range(len(seeds)))
+        cols = "  ".join(f"{visits[i][j]:9.2f}  {per_spot[i][j]:8.3f}"
+                         + (f"  {spreads[i][j]:9.2f}" if has_target else "") for i in range(len(seeds)))
         print(f"{s:4d}  {dist:10.0f}  {cols}")
     for i, s in enumerate(seeds):
         dist = np.linalg.norm(xy - start, axis=1)
