@@ -26,30 +26,36 @@ import numpy as np
 # A texel is `alt` where floor(u / pu) + floor(v / pv) is odd; a huge period gives stripes.
 # The first nine stand for MyWayHome's textures, in mywayhome_map.TEXTURE_NAMES order; the
 # rest are spare looks for other layouts.
+#
+# The nine are calibrated to be equally "loud" (2026-11-24, `experiments/look_loudness.py`):
+# a novelty bonus is a prediction error against a random network's output, so a wall whose
+# frames spread that output widely pays more at the same relative accuracy. Bright walls over
+# the dark floor were several times louder than dark ones: on the map, the cyan room's target
+# spread was 8x the start room's, and SIM agents settled there in every run. Each look's
+# colours were moved toward (or away from) mid grey 0.45 by one factor per look until every
+# look, drawn on all walls of the map, gives the same spread within 1.2x (hue and pattern
+# kept). Spawn spots now differ by at most 1.9x (was 8x).
 _STRIPE = 1e6
 TEXTURE_LOOKS = (
     # BIGDOOR2: blue-grey metal door, vertical panels
-    ((0.45, 0.50, 0.62), (0.30, 0.34, 0.45), 32.0, _STRIPE),
+    ((0.45, 0.52, 0.67), (0.25, 0.31, 0.45), 32.0, _STRIPE),
     # CEIL4_2: tan tiles, small checker
-    ((0.80, 0.70, 0.45), (0.62, 0.52, 0.30), 16.0, 16.0),
+    ((0.65, 0.59, 0.45), (0.55, 0.49, 0.36), 16.0, 16.0),
     # CRATE2: brown crates, large checker
-    ((0.55, 0.35, 0.18), (0.38, 0.22, 0.10), 64.0, 64.0),
+    ((0.59, 0.31, 0.08), (0.35, 0.14, 0.00), 64.0, 64.0),
     # COMP01: green computer panels, horizontal bands
-    ((0.20, 0.55, 0.30), (0.08, 0.30, 0.12), _STRIPE, 16.0),
-    # TLITE6_1: white-cyan lights, soft vertical panels. It was 16-unit stripes of twice this
-    # contrast until 2026-11-24: a fresh SIM model then predicted its room worst of all seven
-    # (forward loss 10.9 vs 8.0-10.1; now 6.1, `experiments/room_predictability.py`). SIM
-    # agents settle in that room with either look (README, very-sparse results).
-    ((0.75, 0.95, 0.95), (0.60, 0.80, 0.82), 32.0, _STRIPE),
+    ((0.21, 0.55, 0.31), (0.10, 0.31, 0.14), _STRIPE, 16.0),
+    # TLITE6_1: grey-cyan light panels, soft vertical panels (was bright white-cyan, the
+    # loudest look by 5x)
+    ((0.56, 0.63, 0.63), (0.51, 0.58, 0.59), 32.0, _STRIPE),
     # FLOOR1_6: red-brown, wide bricks
-    ((0.70, 0.25, 0.20), (0.45, 0.12, 0.10), 32.0, 16.0),
+    ((0.66, 0.28, 0.24), (0.45, 0.17, 0.16), 32.0, 16.0),
     # SILVER2: silver, broad horizontal bands
-    ((0.80, 0.80, 0.85), (0.55, 0.55, 0.60), _STRIPE, 32.0),
-    # SFALL2: blue waterfall, soft vertical stripes (8-unit ones of twice this contrast until
-    # 2026-11-24; its room's forward loss as above 9.5, now 8.8)
-    ((0.25, 0.40, 0.90), (0.18, 0.30, 0.75), 16.0, _STRIPE),
+    ((0.67, 0.67, 0.70), (0.51, 0.51, 0.54), _STRIPE, 32.0),
+    # SFALL2: blue waterfall, soft vertical stripes
+    ((0.21, 0.39, 0.99), (0.13, 0.27, 0.81), 16.0, _STRIPE),
     # BIGBRIK1: the corridors' grey-brown brick
-    ((0.55, 0.50, 0.45), (0.38, 0.34, 0.30), 64.0, 32.0),
+    ((0.60, 0.53, 0.45), (0.34, 0.28, 0.22), 64.0, 32.0),
     # spare looks
     ((0.85, 0.55, 0.15), (0.60, 0.35, 0.05), 24.0, 24.0),
     ((0.60, 0.25, 0.65), (0.40, 0.12, 0.45), _STRIPE, 24.0),
