@@ -12,6 +12,13 @@ action shares, and the error within 128 units of ``--spot`` and elsewhere: a pol
 error near a spot is well above random walks' there has found something there its model
 cannot predict.
 
+Part 1b (SIM only): the policy's own episodes again, but each sampled target frame is also
+remade by replaying L uniform random actions, instead of the policy's, from the state at the
+window's newest frame; the window's H frames stay the same. Prints both errors near the spot
+and elsewhere, and the policy's most frequent last-L action tuples with their error (0 turn
+left, 1 turn right, 2 forward, 3 no-op). If the random actions score as high, the policy's
+windows are hard where it goes; if well below, it is what the policy does there.
+
 Part 2 (``--chunks K``): the policy frozen, the novelty model alone trains on its rollouts
 (16 envs x 20 steps per update, a fresh Adam at the run's lr and clip) for K chunks of
 ``--chunk-updates`` updates, and, for comparison, the same rollouts with the model frozen.
@@ -125,6 +132,8 @@ def main(argv=None) -> int:
             f"{lo}-{hi:.0f}: {error[sel].mean():.2f} ({sel.sum() / mask.sum():.0%})" for lo, hi in bands
             for sel in [mask & (moved >= lo) & (moved < hi)] if sel.any()))
 
+    if hasattr(model, "act_len"):
+        replay_last_actions(env, model, network, runner, config, spot, args.spot)
     if args.chunks == 0:
         return 0
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm), optax.adam(config.learning_rate))
@@ -164,6 +173,68 @@ def main(argv=None) -> int:
         print(f"  model {'training' if learn else 'frozen  '} " + " ".join(f"{v:6.2f}" for v in curve)
               + f"   ({time.time() - start:.0f} s)", flush=True)
     return 0
+
+
+def replay_last_actions(env, model, network, runner, config, spot, spot_id, n=NUM_ENVS, every=3):
+    """Part 1b: the policy's windows scored with its own last L actions and with random ones."""
+    H, L = model.obs_len, model.act_len
+    stats = runner.novelty.obs_stats if config.obs_norm else None
+
+    def error_of_last(frames, actions):
+        """frames (H+L, B, ...) o_{e-H-L+1} .. o_e and actions (H+L-1, B): the error of o_e."""
+        b = frames.shape[1]
+        reset = jnp.zeros(actions.shape, bool).at[0].set(True)
+        tl, _ = build_timeline(init_memory(model.history, b, frames.shape[2:], frames.dtype), frames[:-1], reset,
+                               actions, frames[-1], jnp.zeros((b,), bool))
+        error, _, _, _ = model.apply(runner.params["novelty"], tl, normalize_frames(tl.frames, stats))
+        return error[-1]
+
+    @jax.jit
+    def run(key):
+        k_reset, k_act, k_replay = jax.random.split(key, 3)
+
+        def step(c, k):
+            state, carry = c
+            carry, logits, _ = network.apply(runner.params["policy"], carry, state.obs[None], starts_episode(state)[None])
+            action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
+            return (jax.vmap(env.step)(state, action), carry), (state, action)
+
+        state = jax.vmap(env.reset)(jax.random.split(k_reset, n))
+        _, (states, actions) = jax.lax.scan(step, (state, network.initial_carry(n)),
+                                            jax.random.split(k_act, env.task.max_steps))
+
+        def at(e):  # target frame e (index into the episode), its window starting at e - H - L + 1
+            frames = jax.lax.dynamic_slice_in_dim(states.obs, e - H - L + 1, H + L, 0)
+            acts = jax.lax.dynamic_slice_in_dim(actions, e - H - L + 1, H + L - 1, 0)
+            random = jax.random.randint(jax.random.fold_in(k_replay, e), (L, n), 0, env.action_size)
+
+            def replay(s, a):
+                s = jax.vmap(env.step)(s, a)
+                return s, (s.obs, s.done)
+
+            _, (replayed, ended) = jax.lax.scan(replay, jax.tree.map(lambda x: x[e - L], states), random)
+            own = error_of_last(frames, acts)
+            other = error_of_last(jnp.concatenate([frames[:H], replayed]), jnp.concatenate([acts[: H - 1], random]))
+            # the whole window and both continuations lie in one episode
+            ok = (states.pipeline_state.steps[e - H - L + 1] + H + L - 1 == states.pipeline_state.steps[e])
+            ok = ok & ~jnp.any(ended > 0, axis=0)
+            return own, other, ok, states.pipeline_state.pose.pos[e - L], acts[H - 1 :].T
+
+        return jax.lax.map(at, jnp.arange(H + L - 1, env.task.max_steps, every))
+
+    own, other, ok, pos, last = jax.device_get(run(jax.random.PRNGKey(7)))
+    near = np.linalg.norm(pos - spot, axis=-1) < NEAR
+    print(f"  policy windows, error of the target frame after its own last {L} actions vs {L} uniform random ones "
+          "replayed from the same state:")
+    for name, sel in ((f"near spot {spot_id}", ok & near), ("elsewhere", ok & ~near)):
+        if sel.any():
+            print(f"    {name}: own {own[sel].mean():.2f}, random {other[sel].mean():.2f} ({sel.sum()} windows)")
+    sel = ok & near if (ok & near).sum() >= 100 else ok
+    code = (last[sel] * env.action_size ** np.arange(L - 1, -1, -1)).sum(axis=-1)
+    counts = np.bincount(code, minlength=env.action_size ** L)
+    print(f"    most frequent last-{L} action tuples ({'near the spot' if sel is not ok else 'all'}): " + ", ".join(
+        f"{tuple(int(d) for d in np.unravel_index(c, (env.action_size,) * L))} {counts[c] / sel.sum():.1%} "
+        f"error {own[sel][code == c].mean():.2f}" for c in np.argsort(-counts)[:8]))
 
 
 if __name__ == "__main__":
