@@ -314,3 +314,48 @@ def test_no_model_means_no_bonus(frames):
     params, state = novelty.init(jax.random.PRNGKey(0), batch[0][0])
     loss, (bonus, metrics, _) = novelty.loss_and_bonus(params, state, *batch)
     assert params == {} and float(loss) == 0.0 and float(jnp.abs(bonus).max()) == 0.0
+
+
+# ---------------------------------------------------------------- the maze's looks, as a target sees them
+
+def test_no_wall_look_is_a_louder_tv_for_the_rnd_target():
+    """Each of MyWayHome's nine looks, drawn on every wall of the map, spreads the RND target
+    about as widely as the others (`experiments/look_loudness.py` calibrated them). A look
+    that spread it several times wider would pay a prediction-error bonus several times
+    higher at the same accuracy: the bright cyan look did (5x at these sizes, 6x at full)."""
+    from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map
+    from simjax.novelty.networks import RNDTarget
+
+    base = mywayhome_layout([10])
+    spots = jnp.asarray([mywayhome_map.SPAWN_SPOTS[s] for s in (10, 17, 22, 26)], jnp.float32)
+    walks, steps = 4, 16
+
+    @jax.jit
+    def frames(look, key):
+        layout = base._replace(walls=base.walls._replace(texture=jnp.full_like(base.walls.texture, look)))
+
+        def from_spot(spot, k):
+            env = MazeEnv(layout._replace(spawns=spot[None]), MazeTask("looks", random_heading=True))
+            k_reset, k_act = jax.random.split(k)
+            state = jax.vmap(env.reset)(jax.random.split(k_reset, walks))
+
+            def step(state, a):
+                nxt = jax.vmap(env.step)(state, a)
+                return nxt, nxt.obs
+
+            _, obs = jax.lax.scan(step, state, jax.random.randint(k_act, (steps, walks), 0, env.action_size))
+            return obs.reshape((-1,) + obs.shape[2:])
+
+        obs = jax.vmap(from_spot)(spots, jax.random.split(key, spots.shape[0]))
+        return obs.reshape((-1,) + obs.shape[2:])
+
+    per_look = [frames(k, jax.random.PRNGKey(50)) for k in range(len(mywayhome_map.TEXTURE_NAMES))]
+    chex.assert_shape(per_look[0], (4 * walks * steps, 42, 42, 3))
+    everything = jnp.concatenate(per_look)
+    stats = RunningMeanStd.create(everything.shape[1:]).update(everything)
+    targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), everything[:1].astype(jnp.float32)) for i in range(2)]
+    target = jax.jit(lambda p, f: RNDTarget().apply(p, normalize_frames(f, stats)))
+    spread = np.asarray([np.mean([0.5 * np.asarray(target(p, f)).var(axis=0).sum() for p in targets])
+                         for f in per_look])
+    assert np.all(np.isfinite(spread)) and spread.min() > 0
+    assert spread.max() / spread.min() < 2.5, dict(zip(mywayhome_map.TEXTURE_NAMES, spread.round(2)))
