@@ -31,9 +31,9 @@ import numpy as np
 # a novelty bonus is a prediction error against a random network's output, so a wall whose
 # frames spread that output widely pays more at the same relative accuracy. Bright walls over
 # the dark floor were several times louder than dark ones: on the map, the cyan room's target
-# spread was 8x the start room's, and SIM agents settled there in every run. Each look's
+# spread was 8x the start room's, and SIM agents settled there in most runs. Each look's
 # colours were moved toward (or away from) mid grey 0.45 by one factor per look until every
-# look, drawn on all walls of the map, gives the same spread within 1.2x (hue and pattern
+# look, drawn on all walls of the map, gives the same spread within 1.1x (hue and pattern
 # kept). Spawn spots now differ by at most 1.9x (was 8x).
 _STRIPE = 1e6
 TEXTURE_LOOKS = (
