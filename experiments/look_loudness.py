@@ -40,7 +40,7 @@ from novelty_map import random_walks  # noqa: E402
 
 from simjax.envs import mywayhome_layout, mywayhome_map, raycaster  # noqa: E402
 from simjax.envs.maze import MazeEnv, MazeTask  # noqa: E402
-from simjax.novelty.base import RunningMeanStd, normalize_frames  # noqa: E402
+from simjax.novelty.base import RunningMeanStd, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
 
 LOOK_SPOTS = (10, 13, 17, 22, 24, 26)  # where the walks start when one look covers the map
@@ -81,9 +81,9 @@ class Meter:
         spawn = jnp.asarray(mywayhome_map.SPAWN_SPOTS[spot], jnp.float32)
         return self._frames(jnp.asarray(texture, jnp.int32), spawn, key)
 
-    def spread(self, frames, stats) -> float:
+    def spread(self, frames, stats) -> float:  # averaged over the random targets
         x = normalize_frames(frames, stats)
-        return float(np.mean([0.5 * np.asarray(self._targets(p, x)).var(axis=0).sum() for p in self.targets]))
+        return float(np.mean([spread(self._targets(p, x)) for p in self.targets]))
 
 
 def measure(meter: Meter, looks) -> tuple[np.ndarray, dict]:

@@ -37,7 +37,7 @@ from trajectories import episodes, first_episode  # noqa: E402
 
 from simjax.agents import make_trainer  # noqa: E402
 from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
-from simjax.novelty.base import build_timeline, init_memory, normalize_frames  # noqa: E402
+from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
 from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
 
@@ -138,7 +138,7 @@ def main(argv=None) -> int:
         if has_target:  # half the target's summed variance over each spot's scored frames
             t = np.asarray(target).reshape(args.steps, len(spots), args.walks, -1)
             m = mask.reshape(args.steps, len(spots), args.walks)
-            spreads.append(np.asarray([0.5 * t[:, j][m[:, j]].var(axis=0).sum() for j in range(len(spots))]))
+            spreads.append(np.asarray([spread(t[:, j][m[:, j]]) for j in range(len(spots))]))
 
     seeds = ckpt["seeds"]
     print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed; {args.walks} random walks "

@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 class Memory(NamedTuple):
@@ -88,6 +89,12 @@ def in_episode(tl: Timeline, k: int) -> jnp.ndarray:
     """(T, N) bool: frame e - k is a real frame of target e's episode."""
     m, t = tl.history, tl.num_targets
     return shifted(tl.valid, m, t, k) & (shifted(tl.segment, m, t, k) == shifted(tl.segment, m, t, 0))
+
+
+def spread(targets) -> float:
+    """Half the summed variance of prediction targets (B, D) over their B samples: the error of
+    a model that predicts their mean, the scale a prediction-error bonus has among them."""
+    return float(0.5 * np.var(np.asarray(targets), axis=0).sum())
 
 
 def masked_mean(x: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
