@@ -28,20 +28,15 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from novelty_map import random_walks  # noqa: E402
-
-from simjax.envs import mywayhome_layout, mywayhome_map, raycaster  # noqa: E402
-from simjax.envs.maze import MazeEnv, MazeTask  # noqa: E402
-from simjax.novelty.base import RunningMeanStd, normalize_frames, spread  # noqa: E402
-from simjax.novelty.networks import RNDTarget  # noqa: E402
+from simjax.envs import mywayhome_layout, mywayhome_map, random_walks, raycaster
+from simjax.envs.maze import MazeEnv, MazeTask
+from simjax.novelty.base import RunningMeanStd, normalize_frames, spread
+from simjax.novelty.networks import RNDTarget
 
 LOOK_SPOTS = (10, 13, 17, 22, 24, 26)  # where the walks start when one look covers the map
 MAP_SPOTS = (10, 11, 13, 16, 17, 18, 21, 22, 23, 24, 25, 26)

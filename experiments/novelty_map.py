@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from trajectories import episodes, first_episode  # noqa: E402
 
 from simjax.agents import make_trainer  # noqa: E402
-from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map  # noqa: E402
+from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map, random_walks  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
 from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
@@ -44,21 +44,6 @@ from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
 MYWAYHOME_TASKS = ("maze-dense", "maze-sparse", "maze-very-sparse")  # the tasks on this map
-
-
-def random_walks(env, key, num_envs: int, steps: int):
-    """obs (T, N, ...), actions (T, N), the frame after, positions (T+1, N, 2) and done (T, N)."""
-    k_reset, k_act = jax.random.split(key)
-    state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
-    actions = jax.random.randint(k_act, (steps, num_envs), 0, env.action_size)
-
-    def step(state, action):
-        nxt = jax.vmap(env.step)(state, action)
-        return nxt, (state.obs, state.pipeline_state.pose.pos, nxt.done)
-
-    last, (obs, pos, done) = jax.lax.scan(step, state, actions)
-    pos = jnp.concatenate([pos, last.pipeline_state.pose.pos[None]], axis=0)
-    return obs, actions, last.obs, pos, done
 
 
 def spearman(a, b) -> float:

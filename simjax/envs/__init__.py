@@ -24,7 +24,7 @@ from typing import Callable
 
 from simjax.envs import mywayhome_map
 from simjax.envs.explore_goals import ExploreGoalsEnv
-from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
+from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
 from simjax.envs.melon import MELON_TASK, melon_layout
 
 GYMNAX_PREFIX = "gymnax:"
@@ -79,4 +79,4 @@ def make(name: str):
 
 
 __all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv",
-           "mywayhome_layout", "tiny_layout", "melon_layout"]
+           "mywayhome_layout", "tiny_layout", "melon_layout", "random_walks"]

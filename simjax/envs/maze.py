@@ -237,3 +237,22 @@ class MazeEnv(Env):
             "episode_length": f(length),
             "episode_return": f(ret),
         }
+
+
+def random_walks(env: Env, key: chex.PRNGKey, num_envs: int, steps: int):
+    """Uniform random actions in ``num_envs`` copies of a maze env for ``steps`` steps (episodes
+    that end are reset by the env itself). Returns the frame before each step (T, N, ...), the
+    actions (T, N), the last frame (N, ...), the agent's positions (T+1, N, 2) and done (T, N).
+    The diagnostics (``experiments/novelty_map.py``, ``look_loudness.py``) and the looks test
+    measure the novelty targets on these."""
+    k_reset, k_act = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
+    actions = jax.random.randint(k_act, (steps, num_envs), 0, env.action_size)
+
+    def step(state, action):
+        nxt = jax.vmap(env.step)(state, action)
+        return nxt, (state.obs, state.pipeline_state.pose.pos, nxt.done)
+
+    last, (obs, pos, done) = jax.lax.scan(step, state, actions)
+    pos = jnp.concatenate([pos, last.pipeline_state.pose.pos[None]], axis=0)
+    return obs, actions, last.obs, pos, done
