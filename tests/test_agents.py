@@ -1,6 +1,7 @@
 """The A2C learner, the config and the command line."""
 
 import csv
+import dataclasses
 import json
 import sys
 
@@ -13,6 +14,7 @@ from flax import serialization
 
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer, n_step_returns, summarize, total_reward
+from simjax.agents.a2c import Transition, a2c_loss
 from simjax.envs import make
 
 
@@ -28,6 +30,53 @@ def test_n_step_returns_by_hand():
     np.testing.assert_allclose(np.asarray(got)[:, 0], [1.0, 0.0, 12.0, 20.0])
     no_done = n_step_returns(rewards, jnp.zeros_like(dones), jnp.zeros_like(truncs), values, g)
     np.testing.assert_allclose(np.asarray(no_done)[-1, 0], 0.0 + g * 50.0)  # bootstraps V(o_T)
+
+
+class _FixedValues:
+    """A stand-in network for ``a2c_loss``: uniform logits and the given values."""
+
+    def __init__(self, values, num_actions=3):
+        self.values, self.num_actions = values, num_actions
+
+    def apply(self, params, carry, obs, reset):
+        return carry, jnp.zeros(self.values.shape[:2] + (self.num_actions,)), self.values
+
+
+def test_a_non_episodic_bonus_return_runs_on_past_the_goal():
+    """With bonus_episodic=False the bonus's return crosses the episode end that the task's
+    return stops at. A bonus of 1 per step, the goal reached at t = 1: the return at t = 0 is
+    2.75 (0.5 task + 2.25 bonus) non-episodic, 2.0 episodic, where the goal ends the bonus too."""
+    g, T = 0.5, 3
+    traj = Transition(obs=jnp.zeros((T, 1, 2)), reset=jnp.zeros((T, 1), bool), action=jnp.zeros((T, 1), jnp.int32),
+                      reward=jnp.array([[0.0], [1.0], [0.0]]), done=jnp.array([[0.0], [1.0], [0.0]]),
+                      truncation=jnp.zeros((T, 1)), metrics={})
+    bonus = jnp.ones((T, 1))
+    v_bonus = jnp.array([0.0, 0.0, 0.0, 4.0])  # only V_b(o_3), the value after the rollout, is not 0
+    values = jnp.stack([jnp.zeros(T + 1), v_bonus], -1)[:, None, :]
+    config = TrainConfig(env="maze-tiny", algo="rnd", gamma=g, bonus_episodic=False, entropy_coef=0.0)
+    _, info = a2c_loss(None, _FixedValues(values), None, traj, jnp.zeros((1, 2)), jnp.zeros(1, bool), bonus, config)
+    # G_b = [1 + .5 * 2.5, 1 + .5 * 3, 1 + .5 * 4] = [2.25, 2.5, 3] across the done at t = 1
+    # G_e = [.5 * 1, 1, 0] (stops at the done)
+    adv = np.array([0.5 + 2.25, 1.0 + 2.5, 0.0 + 3.0])
+    np.testing.assert_allclose(info["policy_loss"], np.log(3) * adv.mean(), rtol=1e-6)  # -mean(log(1/3) A)
+    np.testing.assert_allclose(info["value_loss"], np.mean([0.25 + 2.25**2, 1 + 2.5**2, 9.0]), rtol=1e-6)
+    episodic = dataclasses.replace(config, bonus_episodic=True)
+    _, info = a2c_loss(None, _FixedValues(values[..., 1]), None, traj, jnp.zeros((1, 2)), jnp.zeros(1, bool), bonus,
+                       episodic)  # one head, rewards [1, 2, 1]: G = [1 + .5 * 2, 2, 1 + .5 * 4]
+    np.testing.assert_allclose(info["policy_loss"], np.log(3) * np.mean([2.0, 2.0, 3.0]), rtol=1e-6)
+
+
+def test_a_non_episodic_bonus_trains_its_own_value_head():
+    config = _tiny_config(algo="rnd", num_envs=2, rollout_len=4, total_steps=16, log_every=16, bonus_episodic=False)
+    trainer = make_trainer(config)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    after, metrics = jax.jit(trainer.run_chunk)(runner)
+    chex.assert_tree_all_finite((after.params, metrics))
+    before, moved = runner.params["policy"]["params"], after.params["policy"]["params"]
+    chex.assert_shape(before["IntrinsicValue"]["kernel"], (256, 1))
+    assert not np.array_equal(before["IntrinsicValue"]["kernel"], moved["IntrinsicValue"]["kernel"])
+    one_head = make_trainer(dataclasses.replace(config, bonus_episodic=True)).init(jax.random.PRNGKey(0))
+    assert set(before) - set(one_head.params["policy"]["params"]) == {"IntrinsicValue"}  # old checkpoints load
 
 
 def test_reward_seam():
@@ -50,6 +99,7 @@ def test_reward_seam():
     (dict(sim_target="pixels"), "sim_target"),
     (dict(forward_weight=1.5), "forward_weight"),
     (dict(rl_weight=0.0), "rl_weight"),
+    (dict(algo="a2c", bonus_episodic=False), "bonus_episodic"),
 ])
 def test_config_rejects_bad_values(bad, match):
     with pytest.raises(ValueError, match=match):
@@ -269,3 +319,33 @@ def test_supervisor_restarts_a_stalled_worker(tmp_path):
     assert marker.read_text() == "xxx"  # stalled twice, then finished
     marker.unlink()
     assert cli.supervise(tmp_path, True, max_restarts=1, cmd=[sys.executable, "-c", script]) == cli.STALLED
+
+
+def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, capsys):
+    from simjax import fork
+
+    config = _tiny_config(algo="rnd", num_envs=2, rollout_len=4, total_steps=16, log_every=8)
+    cli.run(config, tmp_path / "src", quiet=True)
+    before = (tmp_path / "src" / "checkpoint.msgpack").read_bytes()
+    for bad, message in ((["--num-envs", "4"], "cannot change num_envs"), (["--total-steps", "16"], "larger"),
+                         ([], "at least one"), (["--bonus-scale", "-1"], "bonus_scale")):
+        with pytest.raises(SystemExit):
+            fork.main([str(tmp_path / "src"), str(tmp_path / "bad"), *bad])
+        assert message in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    assert fork.main([str(tmp_path / "src"), str(tmp_path / "dst"), "--bonus-episodic", "false",
+                      "--bonus-scale", "0.5", "--total-steps", "32"]) == 0
+    assert (tmp_path / "src" / "checkpoint.msgpack").read_bytes() == before  # the source is never written
+    record = json.loads((tmp_path / "dst" / "fork.json").read_text())
+    assert record["env_steps"] == 16 and record["changed"]["bonus_scale"] == [0.01, 0.5]
+    # only the bonus's value head and its Adam moments are new
+    assert record["new_leaves"] and all("IntrinsicValue" in p for p in record["new_leaves"])
+    new = cli.load_config(tmp_path / "dst")
+    assert (new.bonus_episodic, new.bonus_scale, new.total_steps) == (False, 0.5, 32)
+    src = cli.load_checkpoint(tmp_path / "src")["runner"]
+    dst = cli.load_checkpoint(tmp_path / "dst")["runner"]
+    np.testing.assert_array_equal(dst["params"]["policy"]["params"]["Dense_1"]["kernel"],
+                                  src["params"]["policy"]["params"]["Dense_1"]["kernel"])
+    chex.assert_trees_all_equal(dst["novelty"], src["novelty"])
+    cli.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 16
+    rows = list(csv.DictReader(open(tmp_path / "dst" / "metrics.csv")))
+    assert [int(r["env_steps"]) for r in rows] == [8, 16, 24, 32]

@@ -10,6 +10,13 @@ Per update, with values V from the network and ``done``/``trunc`` from the envir
     G_t   = r_t + gamma * ((1 - done_t) G_{t+1} + trunc_t V(o_t))
     loss  = -mean(log pi(a_t|o_t) (G_t - V(o_t))) + c_v mean((G_t - V(o_t))^2) - c_H mean(H[pi])
 A termination (goal reached) stops the return there; a truncation (time limit) bootstraps.
+With ``bonus_episodic=False`` (RND's non-episodic intrinsic return, Burda et al. 2018) the
+network has a second value head V_b and the two rewards get returns of their own:
+    G^e_t = task_scale * r^e_t + gamma * ((1 - done_t) G^e_{t+1} + trunc_t V_e(o_t))
+    G^b_t = bonus_t + gamma * G^b_{t+1}        (on across episode ends), G^b_T = V_b(o_T)
+    A_t   = (G^e_t - V_e(o_t)) + (G^b_t - V_b(o_t)),  value loss: the sum of both squared errors.
+Episodic, a positive bonus is worth about beta * r+ / (1 - gamma) to an agent that keeps going;
+once that exceeds the goal's reward, ending the episode at the goal is a loss (README).
 The auto-resetting environment returns the new episode's first frame, not the truncated
 episode's last one, so the truncation bootstrap uses V(o_t), the value of the last frame the
 episode showed; with 525-step episodes and 0/1 rewards this one-step shift is immaterial.
@@ -106,28 +113,40 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
     reset = jnp.concatenate([traj.reset, last_reset[None]], axis=0)
     _, logits, values = network.apply(params, carry0, obs, reset)
     logits, value = logits[:-1], values[:-1]
-    rewards = total_reward(config.task_scale, traj.reward, bonus)
-    returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), config.gamma)
-    advantage = returns - jax.lax.stop_gradient(value)
+    if config.bonus_episodic:
+        rewards = total_reward(config.task_scale, traj.reward, bonus)
+        returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), config.gamma)
+        advantage = returns - jax.lax.stop_gradient(value)
+    else:  # two streams: the task's return ends with the episode, the bonus's runs on into the next
+        chex.assert_shape(values, (traj.done.shape[0] + 1, traj.done.shape[1], 2))
+        never = jnp.zeros_like(traj.done)
+        v = jax.lax.stop_gradient(values)
+        returns = jnp.stack([
+            n_step_returns(total_reward(config.task_scale, traj.reward, 0.0), traj.done, traj.truncation, v[..., 0],
+                           config.gamma),
+            n_step_returns(bonus, never, never, v[..., 1], config.gamma),
+        ], axis=-1)
+        advantage = jnp.sum(returns - v[:-1], axis=-1)  # the policy follows both: A = A_task + A_bonus
     log_probs = jax.nn.log_softmax(logits)
     log_pi = jnp.take_along_axis(log_probs, traj.action[..., None], axis=-1)[..., 0]
     entropy = -jnp.sum(jnp.exp(log_probs) * log_probs, axis=-1)
     policy_loss = -jnp.mean(log_pi * advantage)
-    value_loss = jnp.mean((returns - value) ** 2)
+    squared = (returns - value) ** 2
+    value_loss = jnp.mean(squared if config.bonus_episodic else squared.sum(-1))
     entropy_mean = jnp.mean(entropy)
     loss = policy_loss + config.value_coef * value_loss - config.entropy_coef * entropy_mean
     return loss, {
         "policy_loss": policy_loss,
         "value_loss": value_loss,
         "entropy": entropy_mean,
-        "value_mean": jnp.mean(value),
+        "value_mean": jnp.mean(value if config.bonus_episodic else value.sum(-1)),  # both streams together
     }
 
 
 def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
     """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
     env = make(config.env) if env is None else env
-    network = ActorCritic(num_actions=env.action_size)
+    network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
     novelty = make_novelty(config, env.action_size, env.observation_size) if novelty is None else novelty
     eta = config.policy_weight
 

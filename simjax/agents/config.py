@@ -56,6 +56,10 @@ class TrainConfig:
     sim_inverse: bool = _f(True, "SIM: train the inverse head (false: inverse loss off)")
     obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
     bonus_norm: bool = _f(False, "divide the novelty error by a running std of its discounted sum")
+    bonus_episodic: bool = _f(True, "the bonus's return ends with the episode, like the task reward's "
+                              "(the paper's A2C, one value head); false: it runs on across episode "
+                              "ends with its own value head (RND's non-episodic intrinsic return), so "
+                              "reaching the goal does not forfeit the bonus still to come")
 
     def __post_init__(self):
         from simjax.envs import check_name  # envs know nothing of agents; the reverse is fine
@@ -96,6 +100,8 @@ class TrainConfig:
                 f"total_steps ({self.total_steps}) is less than one update "
                 f"(num_envs * rollout_len = {self.steps_per_update})"
             )
+        if self.algo == "a2c" and not self.bonus_episodic:
+            raise ValueError("bonus_episodic=False gives the bonus its own return; a2c has no bonus")
         if self.algo != "a2c":  # can the novelty model read this task's observations?
             from simjax.envs import make
             from simjax.novelty import check_observation

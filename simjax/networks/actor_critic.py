@@ -64,11 +64,13 @@ class ResetLSTM(nn.Module):
 
 class ActorCritic(nn.Module):
     """``(carry, obs (T, N, H, W, C), reset (T, N)) -> (carry, logits (T, N, A), value (T, N))``;
-    obs may also be vectors (T, N, D)."""
+    obs may also be vectors (T, N, D). With ``two_values`` the value is (T, N, 2): the task
+    reward's and, from a head of its own (``IntrinsicValue``), the bonus's."""
 
     num_actions: int
     hidden: int = 256
     embed: int = 256
+    two_values: bool = False
 
     @nn.compact
     def __call__(self, carry, obs: jnp.ndarray, reset: jnp.ndarray):
@@ -78,6 +80,9 @@ class ActorCritic(nn.Module):
         carry, h = ResetLSTM(self.hidden)(carry, (x, reset))
         logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
         value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0))(h)[..., 0]
+        if self.two_values:  # a separate head: one-value checkpoints keep their parameter names
+            bonus_value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0), name="IntrinsicValue")(h)
+            value = jnp.stack([value, bonus_value[..., 0]], axis=-1)
         return carry, logits, value
 
     def initial_carry(self, batch: int):
