@@ -6,6 +6,7 @@ more than success (melon, explore-goals, gymnax); the mean bonus per step if the
 from __future__ import annotations
 
 import csv
+import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -48,6 +49,14 @@ def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
     axes[1].set(xlabel="agent steps", ylabel=second[1])
     if with_bonus:
         axes[2].set(xlabel="agent steps", ylabel="mean bonus per step (beta r+)", yscale="log")
+    fork = Path(run_dir) / "fork.json"  # a fork (simjax.fork): mark where it left its source
+    if fork.exists():
+        record = json.loads(fork.read_text())
+        changed = ", ".join(f"{k} {a}->{b}" for k, (a, b) in record["changed"].items() if k != "total_steps")
+        for ax in axes:
+            ax.axvline(record["env_steps"], color="grey", linestyle="--", linewidth=1)
+        axes[0].text(record["env_steps"], 0.5, f" fork: {changed} ", fontsize=7, color="grey", rotation=90,
+                     ha="right", va="center")
     axes[0].legend(fontsize=8)
     fig.suptitle(Path(run_dir).name, fontsize=10)
     fig.tight_layout()
