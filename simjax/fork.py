@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 from simjax.agents.config import TrainConfig
-from simjax.train import _atomic_write, build_parser, load_config
+from simjax.train import _atomic_write, build_parser, load_config, write_config
 
 # settings a fork may change: how it learns and what it is paid, not what it is
 FORKABLE = ("total_steps", "learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
@@ -71,7 +71,7 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
 
     dst.mkdir(parents=True)
     shutil.copyfile(src / "metrics.csv", dst / "metrics.csv")
-    _atomic_write(dst / "config.json", json.dumps({"config": dataclasses.asdict(config)}, indent=2).encode())
+    write_config(dst, config)
     state = {"runner": runner, "env_steps": ckpt["env_steps"], "seeds": ckpt["seeds"]}
     _atomic_write(dst / "checkpoint.msgpack", serialization.msgpack_serialize(state))
     record = {

@@ -138,6 +138,12 @@ def _mean(values) -> float:
 STALLED = 75  # exit status of a worker whose XLA computation stopped making progress
 
 
+def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = None) -> None:
+    """config.json: every setting (and, from a training process, the package versions)."""
+    record = {"config": dataclasses.asdict(config)} | ({"versions": versions} if versions else {})
+    _atomic_write(Path(run_dir) / "config.json", json.dumps(record, indent=2).encode())
+
+
 def load_config(run_dir: Path) -> TrainConfig:
     path = Path(run_dir) / "config.json"
     if not path.exists():
@@ -228,10 +234,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     enable_compilation_cache()
     out.mkdir(parents=True, exist_ok=True)
     versions = {m: __import__(m).__version__ for m in ("jax", "flax", "optax", "brax")}
-    _atomic_write(  # on resume this is the config read from it, with this process's versions
-        out / "config.json",
-        json.dumps({"config": dataclasses.asdict(config), "versions": versions}, indent=2).encode(),
-    )
+    write_config(out, config, versions)  # on resume: the config read from it, with this process's versions
 
     trainer = make_trainer(config)
     seeds = [config.seed + i for i in range(config.num_seeds)]
@@ -378,7 +381,7 @@ def main(argv=None) -> int:
         return 0
     if known.resume is None:  # write config.json here, so the worker resumes what was asked
         out.mkdir(parents=True, exist_ok=True)
-        _atomic_write(out / "config.json", json.dumps({"config": dataclasses.asdict(config)}, indent=2).encode())
+        write_config(out, config)
     return supervise(out, quiet, known.max_restarts, known.stall_timeout)
 
 
