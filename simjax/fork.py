@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 from simjax.agents.config import TrainConfig
-from simjax.train import _atomic_write, build_parser, load_config, write_config
+from simjax.train import atomic_write, build_parser, load_config, write_config
 
 # settings a fork may change: how it learns and what it is paid, not what it is
 FORKABLE = ("total_steps", "learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
@@ -73,12 +73,12 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
     shutil.copyfile(src / "metrics.csv", dst / "metrics.csv")
     write_config(dst, config)
     state = {"runner": runner, "env_steps": ckpt["env_steps"], "seeds": ckpt["seeds"]}
-    _atomic_write(dst / "checkpoint.msgpack", serialization.msgpack_serialize(state))
+    atomic_write(dst / "checkpoint.msgpack", serialization.msgpack_serialize(state))
     record = {
         "from": str(src), "env_steps": int(ckpt["env_steps"]), "date": dt.date.today().isoformat(),
         "changed": {k: [getattr(old_config, k), v] for k, v in changes.items()}, "new_leaves": new_leaves,
     }
-    _atomic_write(dst / "fork.json", json.dumps(record, indent=2).encode())
+    atomic_write(dst / "fork.json", json.dumps(record, indent=2).encode())
     return new_leaves
 
 

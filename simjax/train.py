@@ -95,7 +95,9 @@ def enable_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename, so a run stopped
+    mid-write leaves the old file or the new one, never half of one."""
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_bytes(data)
     os.replace(tmp, path)
@@ -141,7 +143,7 @@ STALLED = 75  # exit status of a worker whose XLA computation stopped making pro
 def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = None) -> None:
     """config.json: every setting (and, from a training process, the package versions)."""
     record = {"config": dataclasses.asdict(config)} | ({"versions": versions} if versions else {})
-    _atomic_write(Path(run_dir) / "config.json", json.dumps(record, indent=2).encode())
+    atomic_write(Path(run_dir) / "config.json", json.dumps(record, indent=2).encode())
 
 
 def load_config(run_dir: Path) -> TrainConfig:
@@ -262,7 +264,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
 
     def save_checkpoint(runner, steps):
         state = {"runner": serialization.to_state_dict(jax.device_get(runner)), "env_steps": steps, "seeds": seeds}
-        _atomic_write(out / "checkpoint.msgpack", serialization.msgpack_serialize(state))
+        atomic_write(out / "checkpoint.msgpack", serialization.msgpack_serialize(state))
 
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
@@ -277,7 +279,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
     start = time.perf_counter() - wall_before
     try:
-        _atomic_write(out / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
+        atomic_write(out / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
         with open(out / "metrics.csv", "a", newline="") as f:
             writer = csv.writer(f)
             last = time.perf_counter()

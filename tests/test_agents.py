@@ -293,7 +293,7 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
 
 def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
-    whole = cli.run(config, tmp_path / "whole", quiet=True)
+    cli.run(config, tmp_path / "whole", quiet=True)
     calls = []
 
     def stop_after_first(self, *args):

@@ -294,7 +294,7 @@ def render(
     chex.assert_shape(pos, (2,))
     chex.assert_shape(heading, ())
     chex.assert_shape(sprites.pos, (None, 2))
-    W, H, f = camera.width, camera.height, camera.focal
+    H, f = camera.height, camera.focal
     depth, wall, u = cast_rays(walls, pos, heading, camera)
     depth = jnp.maximum(depth, 1.0)
 
