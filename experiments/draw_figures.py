@@ -46,7 +46,7 @@ def main():
 
     fig, axes = plt.subplots(1, len(VIEWS), figsize=(3 * len(VIEWS), 3.3))
     for ax, (caption, x, y, deg) in zip(axes, VIEWS):
-        frame = env.render(Pose(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(deg)), jnp.zeros(2)))
+        frame = env.render(Pose.at(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(deg))))
         ax.imshow(frame, interpolation="nearest")
         ax.set_title(caption, fontsize=8)
         ax.axis("off")
@@ -59,7 +59,7 @@ def main():
 
 
 def _pose(x, y, deg):
-    return Pose(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(deg)), jnp.zeros(2))
+    return Pose.at(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(deg)))
 
 
 MELON_VIEWS = [  # (caption, x, y, heading in degrees)

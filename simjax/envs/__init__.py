@@ -36,17 +36,29 @@ def mywayhome_layout(spawn_ids=None) -> Layout:
     return Layout.build(mywayhome_map.WALLS, [goal_item(mywayhome_map.GOAL_XY)], spawn_xy)
 
 
+def mywayhome_look(layout: Layout):
+    """MyWayHome's walls as ViZDoom draws them (Freedoom's textures, the map's x-offsets)."""
+    from simjax.envs import doom_assets, doom_render
+
+    assets = doom_assets.load()
+    return doom_render.build_look(layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],
+                                  assets["wall_u_reversed"], assets=assets)
+
+
+def _mywayhome(name: str, spawn_ids=None, **task) -> MazeEnv:
+    layout = mywayhome_layout(spawn_ids)
+    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout))
+
+
 def tiny_layout() -> Layout:
     room = [(0, 0, 320, 0, 8), (320, 0, 320, 128, 7), (320, 128, 0, 128, 8), (0, 128, 0, 0, 0)]
     return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
 
 
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
-    "maze-dense": lambda: MazeEnv(mywayhome_layout(), MazeTask("maze-dense", random_heading=True)),
-    "maze-sparse": lambda: MazeEnv(mywayhome_layout([16]), MazeTask("maze-sparse", random_heading=False)),
-    "maze-very-sparse": lambda: MazeEnv(
-        mywayhome_layout([10]), MazeTask("maze-very-sparse", random_heading=False)
-    ),
+    "maze-dense": lambda: _mywayhome("maze-dense", random_heading=True),
+    "maze-sparse": lambda: _mywayhome("maze-sparse", [16], random_heading=False),
+    "maze-very-sparse": lambda: _mywayhome("maze-very-sparse", [10], random_heading=False),
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
     "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
     "explore-goals": ExploreGoalsEnv,

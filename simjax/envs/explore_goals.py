@@ -210,7 +210,7 @@ class ExploreGoalsEnv(MazeEnv):
         goal = jax.random.randint(k_goal, (), 0, num)
         cell = (goal + jax.random.randint(k_cell, (), 1, num)) % num
         heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
-        pose = motion.Pose(world.spawns[cell], heading, jnp.zeros(2, jnp.float32))
+        pose = motion.Pose.at(world.spawns[cell], heading)
         items = world.items._replace(pos=world.spawns[goal][None])
         return pose, world._replace(items=items)
 

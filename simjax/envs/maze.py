@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from brax.envs.base import Env, State
 
-from simjax.envs import motion, raycaster
+from simjax.envs import doom_render, motion, raycaster
 
 
 class Items(NamedTuple):
@@ -107,15 +107,25 @@ class MazeEnv(Env):
         self,
         layout: Layout,
         task: MazeTask,
-        camera: raycaster.Camera = raycaster.Camera(),
+        camera: raycaster.Camera | doom_render.DoomCamera | None = None,
         motion_params: motion.MotionParams = motion.MotionParams(),
         auto_reset: bool = True,
+        look: doom_render.DoomLook | None = None,
+        light: doom_render.DoomLight = doom_render.DoomLight(),
     ):
+        """``look`` None draws the layout with the invented looks of ``raycaster``; a
+        ``DoomLook`` draws it as ViZDoom does (``doom_render``), through a ``DoomCamera``."""
         if not 1 <= task.num_actions <= len(motion.ACTION_NAMES):
             raise ValueError(f"num_actions must be in [1, {len(motion.ACTION_NAMES)}], got {task.num_actions}")
         self.layout = layout
         self.task = task
+        if camera is None:
+            camera = raycaster.Camera() if look is None else doom_render.DoomCamera()
+        if (look is None) != isinstance(camera, raycaster.Camera):
+            raise ValueError("the invented looks need a raycaster.Camera, a DoomLook a DoomCamera")
         self.camera = camera
+        self.look = look
+        self.light = light
         self.motion_params = motion_params
         self.auto_reset = auto_reset
 
@@ -139,6 +149,18 @@ class MazeEnv(Env):
     def reset(self, rng: jax.Array) -> State:
         key, sub = jax.random.split(rng)
         pose, world = self._start(sub)
+        return self._first_state(key, pose, world)
+
+    def reset_to(self, rng: jax.Array, xy, heading) -> State:
+        """An episode that starts standing still at ``xy`` facing ``heading`` (radians,
+        counter-clockwise from east; rounded to Doom's angle unit) instead of at a spawn spot,
+        e.g. to replay a ViZDoom walk from its start. The map (a generated one too) and later
+        episodes come from ``rng`` as in ``reset``. Works under jit and vmap."""
+        key, sub = jax.random.split(rng)
+        _, world = self._start(sub)
+        return self._first_state(key, motion.Pose.at(xy, heading), world)
+
+    def _first_state(self, key, pose: motion.Pose, world) -> State:
         collected = jnp.zeros((self.num_items,), bool)
         ms = MazeState(pose, jnp.int32(0), jnp.float32(0.0), key, collected, world)
         zero = jnp.float32(0.0)
@@ -197,6 +219,8 @@ class MazeEnv(Env):
         if collected is None:
             collected = jnp.zeros((world.items.pos.shape[0],), bool)
         sprites = raycaster.Sprites(world.items.pos, world.items.look, ~collected)
+        if self.look is not None:
+            return doom_render.render(world.walls, pose.pos, pose.heading, sprites, self.look, self.camera, self.light)
         return raycaster.render(world.walls, pose.pos, pose.heading, sprites, self.camera)
 
     def touches(self, item_pos: jnp.ndarray, pos: jnp.ndarray) -> jnp.ndarray:
@@ -226,7 +250,7 @@ class MazeEnv(Env):
             heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
         else:
             heading = jnp.float32(self.task.heading)
-        return motion.Pose(self.layout.spawns[spot], heading, jnp.zeros(2, jnp.float32))
+        return motion.Pose.at(self.layout.spawns[spot], heading)
 
     @staticmethod
     def _episode_metrics(done, success, length, ret):

@@ -184,7 +184,12 @@ def cast_rays(walls: Walls, pos: jnp.ndarray, heading: jnp.ndarray, camera: Came
     p + t d meets the line x = c at t = (c - p_x) / d_x, and the wall there if the hit's y lies
     within the wall's span (likewise for y = c); the smallest t > 0 wins.
     """
-    d = ray_directions(heading, camera)  # (W, 2)
+    return cast_rays_along(walls, pos, ray_directions(heading, camera))
+
+
+def cast_rays_along(walls: Walls, pos: jnp.ndarray, d: jnp.ndarray):
+    """``cast_rays`` for given (N, 2) ray directions ``d``: the hit's ray parameter is the
+    depth along them (perpendicular depth when they are scaled like ``ray_directions``)."""
     inv = _safe_inverse(d)
     tv, iv, yv = _nearest(walls.v_at, walls.v_lo, walls.v_hi, pos[0], pos[1], inv[:, 0], d[:, 1])
     th, ih, xh = _nearest(walls.h_at, walls.h_lo, walls.h_hi, pos[1], pos[0], inv[:, 1], d[:, 0])
