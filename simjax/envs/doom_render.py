@@ -15,10 +15,10 @@ resized frame directly, exactly where it can:
   linear in between), so a far wall's fine pattern averages out instead of aliasing. Screen
   rows above the wall show the ceiling, below it the floor: the flat's mean colour, lit by each
   row's distance, weighted by the share of the output row they cover.
-- Light (``DoomLight``): ZDoom's software renderer picks one of 32 light levels per wall column
+- Light (``DoomLight``): ZDoom's software renderer picks one of 32 light tables per wall column
   from the sector's light (192), the wall's orientation ("fake contrast") and its distance, and
-  per floor or ceiling row from the row's plane distance; each level darkens the palette colour
-  by 1/32.
+  per floor or ceiling row from the row's plane distance; each table darkens the palette
+  colours by about 1/32 more than the one before.
 - Items are Doom sprites (the green armour for the goal): billboards whose screen columns map
   to sprite columns like a wall's, drawn over what they hide, with their transparent texels as
   partial coverage after averaging; a nearer wall hides them per screen column.
@@ -70,50 +70,78 @@ class DoomCamera(NamedTuple):
 
 
 class DoomLight(NamedTuple):
-    """ZDoom's light as a function of distance: a column or row at distance ``d`` gets light
-    level index ``clip(shade - vis / d, 0, 31)`` and its colour is multiplied by
-    ``1 - index / 32``. ``shade`` follows from the sector light (192) and, for walls, the
-    orientation; ``vis`` from the screen's size and r_visibility. Values: see the fit in
-    ``experiments/vizdoom_light.py``."""
+    """ZDoom 2.8's software-renderer light (ViZDoom's engine), for sector light 192.
 
-    wall_shade_x: float = 13.0  # walls running along x (horizontal on the map)
-    wall_shade_y: float = 13.0  # walls running along y
-    wall_vis: float = 1000.0
-    plane_shade: float = 13.0
-    plane_vis: float = 1000.0
+    A wall column at perpendicular depth ``d`` is drawn with light table (COLORMAP) index
+    ``clip(floor(shade - min(max_vis, vis / d)), 0, 31)``: ``shade`` is LIGHT2SHADE of the
+    light level, 64 - (level + 12) / 4, with the fake contrast of +16 levels for walls along
+    y (constant x, brighter) and -16 for walls along x, so 9 and 17 (13 without contrast);
+    ``vis`` is r_WallVisibility for a 160-wide screen with a 90-degree FOV at r_visibility 8
+    (83885864 / 65536). Sprites use the same visibility and shade 13. A floor or ceiling row
+    uses ``plane_vis * |horizon row - row| / h`` (h: the plane's height from the eye) in place
+    of ``vis / d``. Table index k darkens a colour by ``DoomLook.light_rgb[k]``, the ratio of
+    the colormapped to the plain palette colours over the map's texels (about 1 - k / 32)."""
+
+    wall_shade_along_x: float = 17.0
+    wall_shade_along_y: float = 9.0
     sprite_shade: float = 13.0
-    max_index: float = 31.0
+    plane_shade: float = 13.0
+    vis: float = 1279.9967
+    plane_vis: float = 13.33336
+    max_vis: float = 24.0
 
 
-def light_factor(d, shade, vis, max_index=31.0, xp=jnp):
-    """Colour multiplier for distance ``d`` (see ``DoomLight``); ``xp=np`` for constants."""
-    index = xp.clip(shade - vis / xp.maximum(d, 1e-3), 0.0, max_index)
-    return 1.0 - index / 32.0
+def light_index(shade, vis_term, max_vis: float, xp=jnp):
+    """ZDoom's GETPALOOKUP: the light table index (int32) for a visibility term ``vis / d``."""
+    return xp.clip(xp.floor(shade - xp.minimum(max_vis, vis_term)), 0, 31).astype(xp.int32)
 
 
 class DoomLook(NamedTuple):
     """The arrays the renderer reads, built once per map by ``build_look``."""
 
-    wall_prefix: jnp.ndarray  # (T * Wmax * 130, 3) per texture column, prefix sums down the wall
+    wall_prefix: jnp.ndarray  # (LEVELS * columns * 130, 3) per filtered texture column, prefix sums down the wall
+    tex_start: jnp.ndarray  # (T,) int32, each texture's first column in wall_prefix's columns
     tex_width: jnp.ndarray  # (T,) int32, texture widths (texture columns wrap around)
-    tex_wmax: int  # Wmax: the stride of a texture in wall_prefix
+    tex_columns: int  # all textures' columns together: the stride of a level in wall_prefix
     wall_offset: jnp.ndarray  # (S,) texture u at the start of each wall row
     wall_sign: jnp.ndarray  # (S,) +1 where u grows along the row, -1 where it runs the other way
-    plane_rgb: jnp.ndarray  # (2, 3) mean colour of the ceiling and floor flat, 0..1
-    sprite_prefix: jnp.ndarray  # (Ws, Hs + 1, 4) premultiplied RGBA prefix sums down each column
-    sprite_size: tuple  # (Ws, Hs)
-    sprite_offset: tuple  # (leftoffset, topoffset)
+    light_rgb: jnp.ndarray  # (32, 3) colour multiplier of each light table index
+    plane_rgb: jnp.ndarray  # (32, 3) mean colour of the floor and ceiling flat at each index, 0..1
+    sprite_prefix: jnp.ndarray  # (LEVELS * Wp * (Hs + 2), 4) the same for the sprite's premultiplied RGBA
+    sprite_size: tuple  # (Wp, Hs): padded width, height
+    sprite_offset: tuple  # (leftoffset + padding, topoffset)
 
 
-def _column_prefix(rgb: np.ndarray) -> np.ndarray:
-    """(W, 130, 3) prefix sums of each texture column over the 128 texel rows a wall shows
-    (the texture repeats downward if shorter), plus one repeated last entry so that a lookup at
-    floor(t) + 1 never leaves the array."""
-    h = rgb.shape[0]
-    rows = np.arange(int(WALL_HEIGHT)) % h
-    col = rgb[rows].transpose(1, 0, 2).astype(np.float64) / 255.0  # (W, 128, 3)
-    prefix = np.concatenate([np.zeros_like(col[:, :1]), np.cumsum(col, axis=1)], axis=1)
-    return np.concatenate([prefix, prefix[:, -1:]], axis=1)
+LEVELS = 7  # box filters of 1, 2, 4, ..., 64 texel columns: a 64-wide texture's whole width
+_SPRITE_PAD = 32  # transparent columns either side of the sprite, so wide filters fade its edges
+
+
+def _box_levels(columns: np.ndarray, wrap: bool) -> np.ndarray:
+    """(LEVELS, W, ...) the texture's columns box-filtered across 1, 2, 4, ... columns (level
+    l averages columns c - 2^l/2 ... c + 2^l/2 - 1), wrapping around or not."""
+    w = columns.shape[0]
+    out = []
+    for level in range(LEVELS):
+        n = 2**level
+        ks = np.arange(n) - n // 2
+        idx = np.arange(w)[:, None] + ks[None, :]
+        if wrap:
+            out.append(columns[idx % w].mean(1))
+        else:
+            valid = (idx >= 0) & (idx < w)
+            taken = columns[np.clip(idx, 0, w - 1)] * valid.reshape(valid.shape + (1,) * (columns.ndim - 1))
+            out.append(taken.sum(1) / n)
+    return np.stack(out)
+
+
+def _prefix_down(columns: np.ndarray, rows: int) -> np.ndarray:
+    """(..., rows + 2, C) prefix sums down each column of (..., H, C) texels repeated to ``rows``
+    rows, plus one repeated last entry so that a lookup at floor(t) + 1 stays inside."""
+    h = columns.shape[-2]
+    col = np.take(columns, np.arange(rows) % h, axis=-2).astype(np.float64)
+    zero = np.zeros_like(col[..., :1, :])
+    prefix = np.concatenate([zero, np.cumsum(col, axis=-2)], axis=-2)
+    return np.concatenate([prefix, prefix[..., -1:, :]], axis=-2)
 
 
 def build_look(walls: raycaster.Walls, texture_names, offsets_x, reversed_, assets: dict | None = None) -> DoomLook:
@@ -123,31 +151,37 @@ def build_look(walls: raycaster.Walls, texture_names, offsets_x, reversed_, asse
 
     assets = doom_assets.load() if assets is None else assets
     textures = [assets[f"wall_{n}"] for n in texture_names]
-    wmax = max(t.shape[1] for t in textures)
-    prefix = np.zeros((len(textures), wmax, int(WALL_HEIGHT) + 2, 3), np.float32)
-    for i, t in enumerate(textures):
-        prefix[i, : t.shape[1]] = _column_prefix(t)
+    widths = np.array([t.shape[1] for t in textures])
+    # (LEVELS, columns, 130, 3): every texture's columns side by side, at every filter width
+    prefix = np.concatenate([_prefix_down(_box_levels(t.transpose(1, 0, 2) / 255.0, wrap=True), int(WALL_HEIGHT))
+                             for t in textures], axis=1)
     start, end = np.asarray(walls.start), np.asarray(walls.end)
     length = np.abs(end - start).sum(1)
     reversed_ = np.asarray(reversed_, bool)
     # Doom's u runs from the linedef's first vertex; a row that runs the other way starts at
     # u = length (+ offset) and counts down
     offset = np.asarray(offsets_x, np.float32) + np.where(reversed_, length, 0.0)
-    flat = assets["flat_FLAT1_1"].reshape(-1, 3).mean(0) / 255.0
+    palette, colormap = assets["playpal"].astype(np.float64), assets["colormap"][:32]
+    texels = np.concatenate([assets[f"wall_{n}_index"].ravel() for n in texture_names])
+    light_rgb = palette[colormap[:, texels]].sum(1) / np.maximum(palette[texels].sum(0), 1e-9)
+    flat = palette[colormap[:, assets["flat_FLAT1_1_index"].ravel()]].mean(1) / 255.0  # (32, 3)
     sprite = assets["sprite_ARM1A0"].astype(np.float64) / 255.0
     alpha = sprite[..., 3:]
     premul = np.concatenate([sprite[..., :3] * alpha, alpha], -1).transpose(1, 0, 2)  # (Ws, Hs, 4)
-    sprite_prefix = np.concatenate([np.zeros_like(premul[:, :1]), np.cumsum(premul, axis=1)], axis=1)
+    premul = np.pad(premul, ((_SPRITE_PAD, _SPRITE_PAD), (0, 0), (0, 0)))
+    sprite_prefix = _prefix_down(_box_levels(premul, wrap=False), premul.shape[1])
     return DoomLook(
-        wall_prefix=jnp.asarray(prefix.reshape(-1, 3)),
-        tex_width=jnp.asarray([t.shape[1] for t in textures], jnp.int32),
-        tex_wmax=wmax,
+        wall_prefix=jnp.asarray(prefix.reshape(-1, 3), jnp.float32),
+        tex_start=jnp.asarray(np.concatenate([[0], np.cumsum(widths)[:-1]]), jnp.int32),
+        tex_width=jnp.asarray(widths, jnp.int32),
+        tex_columns=int(widths.sum()),
         wall_offset=jnp.asarray(offset, jnp.float32),
         wall_sign=jnp.asarray(np.where(reversed_, -1.0, 1.0), jnp.float32),
-        plane_rgb=jnp.asarray(np.stack([flat, flat]), jnp.float32),
-        sprite_prefix=jnp.asarray(sprite_prefix, jnp.float32),
-        sprite_size=(sprite.shape[1], sprite.shape[0]),
-        sprite_offset=tuple(int(v) for v in assets["sprite_ARM1A0_offset"]),
+        light_rgb=jnp.asarray(light_rgb, jnp.float32),
+        plane_rgb=jnp.asarray(flat, jnp.float32),
+        sprite_prefix=jnp.asarray(sprite_prefix.reshape(-1, 4), jnp.float32),
+        sprite_size=(premul.shape[0], premul.shape[1]),
+        sprite_offset=(int(assets["sprite_ARM1A0_offset"][0]) + _SPRITE_PAD, int(assets["sprite_ARM1A0_offset"][1])),
     )
 
 
@@ -161,39 +195,21 @@ def _area_matrix(n_in: int, n_out: int) -> np.ndarray:
     return overlap / overlap.sum(1, keepdims=True)
 
 
-def _area_band(n_in: int, n_out: int):
-    """The area matrix as (n_out, k) indices and weights of its nonzero band."""
-    m = _area_matrix(n_in, n_out)
-    k = int((m > 0).sum(1).max())
-    idx = np.stack([np.sort(np.argsort(-row)[:k]) for row in m])
-    return idx.astype(np.int32), np.take_along_axis(m, idx, 1).astype(np.float32)
-
-
 def _plane_rows(camera: DoomCamera, light: DoomLight, plane_rgb) -> tuple[np.ndarray, np.ndarray]:
-    """(height, 3) mean colours of the ceiling and floor as each output row shows them: the
-    mean over the row's span of screen rows of the flat's colour lit at that screen row's plane
-    distance (a constant of the camera; rows the plane does not reach get weight where used)."""
-    sub = 16  # samples per screen row
-    y = (np.arange(camera.screen_height * sub) + 0.5) / sub - camera.horizon
-    ceil_d = (WALL_HEIGHT - camera.eye_height) * camera.focal_y / np.maximum(-y, 1e-3)
-    floor_d = camera.eye_height * camera.focal_y / np.maximum(y, 1e-3)
-    lf = lambda d: light_factor(d, light.plane_shade, light.plane_vis, light.max_index, xp=np)
-    ry = _area_matrix(camera.screen_height * sub, camera.height)
-    ceil_w = ry * (y < 0)[None, :]
-    floor_w = ry * (y > 0)[None, :]
-    ceil = (ceil_w @ lf(ceil_d)) / np.maximum(ceil_w.sum(1), 1e-9)
-    floor = (floor_w @ lf(floor_d)) / np.maximum(floor_w.sum(1), 1e-9)
-    plane_rgb = np.asarray(plane_rgb)
-    return ceil[:, None] * plane_rgb[0][None], floor[:, None] * plane_rgb[1][None]
-
-
-def _screen_rays(heading, camera: DoomCamera):
-    """(screen_width, 2) ray directions, one per screen column, scaled so that the ray
-    parameter of a hit is the perpendicular depth."""
-    forward = jnp.stack([jnp.cos(heading), jnp.sin(heading)])
-    right = jnp.stack([jnp.sin(heading), -jnp.cos(heading)])
-    x = (np.arange(camera.screen_width) + 0.5 - camera.screen_width / 2.0) / camera.focal
-    return forward[None, :] + jnp.asarray(x, jnp.float32)[:, None] * right[None, :]
+    """(height, 3) colours of the ceiling and the floor as each output row shows them: the
+    flat's mean colour at each screen row's light index, averaged over the output row's span
+    of screen rows (a constant of the camera)."""
+    rows = np.arange(camera.screen_height)
+    centre = rows + 0.5 - camera.horizon  # the screen row's centre, below the horizon > 0
+    # ZDoom lights a plane row by its whole-row distance from the horizon row
+    away = np.abs(np.floor(camera.horizon + 0.5) - rows)
+    ry = _area_matrix(camera.screen_height, camera.height)
+    out = []
+    for h, side in ((WALL_HEIGHT - camera.eye_height, centre < 0), (camera.eye_height, centre > 0)):
+        k = light_index(light.plane_shade, light.plane_vis * away / h, light.max_vis, xp=np)
+        w = ry * side[None, :]
+        out.append((w @ np.asarray(plane_rgb)[k]) / np.maximum(w.sum(1, keepdims=True), 1e-9))
+    return out[0], out[1]
 
 
 def _row_edges(camera: DoomCamera) -> np.ndarray:
@@ -207,9 +223,17 @@ def _lerp_prefix(prefix, base, t, limit):
     t = jnp.clip(t, 0.0, limit)
     i = jnp.minimum(jnp.floor(t), limit - 1).astype(jnp.int32)
     frac = (t - i)[..., None]
-    lo = jnp.take(prefix, base + i, axis=0)
-    hi = jnp.take(prefix, base + i + 1, axis=0)
+    # the barrier keeps XLA from fusing the index arithmetic into the gathers, where it is
+    # recomputed per gathered element (1.6x slower measured)
+    row = jax.lax.optimization_barrier(base + i)
+    lo = jnp.take(prefix, row, axis=0, mode="clip")
+    hi = jnp.take(prefix, row + 1, axis=0, mode="clip")
     return lo + (hi - lo) * frac
+
+
+def _level(footprint):
+    """The box-filter level whose width (1, 2, 4, ... texels) is nearest a pixel's footprint."""
+    return jnp.clip(jnp.round(jnp.log2(jnp.maximum(footprint, 1.0))), 0, LEVELS - 1).astype(jnp.int32)
 
 
 def render(
@@ -223,53 +247,59 @@ def render(
     eye_height=None,
 ) -> jnp.ndarray:
     """The 42x42 RGB uint8 frame of ViZDoom's 160x120 screen at (pos, heading), area-averaged.
-    ``eye_height`` (traced, optional) overrides the camera's, e.g. for Doom's view bob."""
+    ``eye_height`` (traced, optional) overrides the camera's, e.g. for Doom's view bob.
+
+    One ray per output column, through its centre. The screen columns an output column
+    averages show texel columns across a footprint of ``du`` texels (the change of u to the
+    neighbouring column on the same wall); the texture box-filtered across the nearest power of
+    two stands in for them. Down the column the average is exact, from prefix sums."""
     chex.assert_shape(pos, (2,))
     chex.assert_shape(heading, ())
     f, fy, dy = camera.focal, camera.focal_y, camera.screen_height / camera.height
+    per_column = camera.screen_width / camera.width  # screen columns per output column
     eye = jnp.float32(camera.eye_height if eye_height is None else eye_height)
-    d = _screen_rays(heading, camera)
-    depth, wall, u = raycaster.cast_rays_along(walls, pos, d)
+    rays = raycaster.ray_directions(heading, raycaster.Camera(width=camera.width, fov_deg=camera.fov_deg))
+    depth, wall, u = raycaster.cast_rays_along(walls, pos, rays)
     depth = jnp.maximum(depth, 1.0)
 
-    # walls: per screen column, the texture column and its light
+    # walls: per column, the filtered texture column and its light
     tex = walls.texture[wall]
     u_doom = look.wall_offset[wall] + look.wall_sign[wall] * u
     tu = jnp.mod(jnp.floor(u_doom).astype(jnp.int32), look.tex_width[tex])
-    base = (tex * look.tex_wmax + tu) * (int(WALL_HEIGHT) + 2)
+    level = _level(raycaster._footprint_along(u, wall, depth * per_column / f))
+    rows = int(WALL_HEIGHT) + 2
+    base = (level * look.tex_columns + look.tex_start[tex] + tu) * rows
     e = walls.end[wall] - walls.start[wall]
     along_x = jnp.abs(e[:, 0]) > jnp.abs(e[:, 1])
-    shade = jnp.where(along_x, light.wall_shade_x, light.wall_shade_y)
-    lit = light_factor(depth, shade, light.wall_vis, light.max_index)  # (C,)
+    shade = jnp.where(along_x, light.wall_shade_along_x, light.wall_shade_along_y)
+    lit = look.light_rgb[light_index(shade, light.vis / depth, light.max_vis)]  # (W, 3)
 
-    # per screen column and output row edge: the wall height seen, as a texel row from the top
+    # per column and output row edge: the wall height seen, as a texel row from the top
     y_edge = jnp.asarray(_row_edges(camera), jnp.float32)  # (R + 1,)
-    z = eye - y_edge[None, :] * (depth / fy)[:, None]  # (C, R + 1)
-    cum = _lerp_prefix(look.wall_prefix, base[:, None], WALL_HEIGHT - z, WALL_HEIGHT)  # (C, R + 1, 3)
-    wall_rgb = (cum[:, 1:] - cum[:, :-1]) * (lit * fy / depth / dy)[:, None, None]  # (C, R, 3)
+    z = eye - y_edge[None, :] * (depth / fy)[:, None]  # (W, R + 1)
+    cum = _lerp_prefix(look.wall_prefix, base[:, None], WALL_HEIGHT - z, WALL_HEIGHT)  # (W, R + 1, 3)
+    wall_rgb = (cum[:, 1:] - cum[:, :-1]) * (lit * (fy / depth / dy)[:, None])[:, None, :]  # (W, R, 3)
     y_top = (eye - WALL_HEIGHT) * fy / depth  # screen rows above this show the ceiling
     y_bot = eye * fy / depth  # below this, the floor
     lo, hi = y_edge[None, :-1], y_edge[None, 1:]
-    ceil_share = jnp.clip(jnp.minimum(hi, y_top[:, None]) - lo, 0.0, dy) / dy  # (C, R)
+    ceil_share = jnp.clip(jnp.minimum(hi, y_top[:, None]) - lo, 0.0, dy) / dy  # (W, R)
     floor_share = jnp.clip(hi - jnp.maximum(lo, y_bot[:, None]), 0.0, dy) / dy
     ceil_rgb, floor_rgb = (jnp.asarray(x, jnp.float32) for x in _plane_rows(camera, light, look.plane_rgb))
     rgb = wall_rgb + ceil_share[..., None] * ceil_rgb[None] + floor_share[..., None] * floor_rgb[None]
 
-    rgb = _draw_sprites(rgb, depth, d, pos, heading, eye, sprites, look, camera, light)
-
-    # output columns: the area average of the screen columns each covers
-    idx, w = (jnp.asarray(a) for a in _area_band(camera.screen_width, camera.width))
-    out = jnp.einsum("jk,jkrc->rjc", w, rgb[idx])  # (R, J, 3)
-    return jnp.round(jnp.clip(out, 0.0, 1.0) * 255.0).astype(jnp.uint8)
+    rgb = _draw_sprites(rgb, depth, pos, heading, eye, sprites, look, camera, light)
+    return jnp.round(jnp.clip(rgb.transpose(1, 0, 2), 0.0, 1.0) * 255.0).astype(jnp.uint8)
 
 
-def _draw_sprites(rgb, depth, rays, pos, heading, eye, sprites: raycaster.Sprites, look: DoomLook, camera, light):
-    """Composite every visible sprite over the (C, R, 3) columns, farthest first, where it is
+def _draw_sprites(rgb, depth, pos, heading, eye, sprites: raycaster.Sprites, look: DoomLook, camera, light):
+    """Composite every visible sprite over the (W, R, 3) columns, farthest first, where it is
     nearer than the column's wall. A sprite's screen column x shows its texel column
-    ``leftoffset + (x - centre) * depth / focal``; its top row stands ``topoffset`` above the
-    floor (Doom's placement of a thing's sprite)."""
+    ``leftoffset + (x - centre) * depth / focal`` (filtered across the output column's
+    footprint); its top row stands ``topoffset`` above the floor (Doom's placement of a thing's
+    sprite)."""
     f, fy, dy = camera.focal, camera.focal_y, camera.screen_height / camera.height
-    ws, hs = look.sprite_size
+    per_column = camera.screen_width / camera.width
+    wp, hs = look.sprite_size
     left, top = look.sprite_offset
     forward = jnp.stack([jnp.cos(heading), jnp.sin(heading)])
     right = jnp.stack([jnp.sin(heading), -jnp.cos(heading)])
@@ -277,17 +307,17 @@ def _draw_sprites(rgb, depth, rays, pos, heading, eye, sprites: raycaster.Sprite
     s_depth = rel @ forward
     s_near = jnp.maximum(s_depth, 1.0)
     centre = camera.screen_width / 2.0 + f * (rel @ right) / s_near  # (K,) screen x
-    x = jnp.asarray(np.arange(camera.screen_width) + 0.5, jnp.float32)
-    col = jnp.floor(left + (x[None, :] - centre[:, None]) * (s_near / f)[:, None]).astype(jnp.int32)  # (K, C)
-    shown = (sprites.visible[:, None] & (s_depth[:, None] > 1.0) & (col >= 0) & (col < ws)
+    x = jnp.asarray((np.arange(camera.width) + 0.5) * per_column, jnp.float32)
+    col = jnp.floor(left + (x[None, :] - centre[:, None]) * (s_near / f)[:, None]).astype(jnp.int32)  # (K, W)
+    shown = (sprites.visible[:, None] & (s_depth[:, None] > 1.0) & (col >= 0) & (col < wp)
              & (s_depth[:, None] < depth[None, :]))
+    level = _level(s_near * per_column / f)  # (K,)
     y_edge = jnp.asarray(_row_edges(camera), jnp.float32)
     z = eye - y_edge[None, :] * (s_near / fy)[:, None]  # (K, R + 1)
-    base = jnp.clip(col, 0, ws - 1) * (hs + 1)  # (K, C)
-    prefix = look.sprite_prefix.reshape(-1, 4)
-    cum = _lerp_prefix(prefix, base[:, :, None], (top - z)[:, None, :], float(hs))  # (K, C, R + 1, 4)
-    lit = light_factor(s_near, light.sprite_shade, light.wall_vis, light.max_index)  # (K,)
-    cover = (cum[:, :, 1:] - cum[:, :, :-1]) * (fy / s_near / dy)[:, None, None, None]  # (K, C, R, 4)
+    base = (level[:, None] * wp + jnp.clip(col, 0, wp - 1)) * (hs + 2)  # (K, W)
+    cum = _lerp_prefix(look.sprite_prefix, base[:, :, None], (top - z)[:, None, :], float(hs))  # (K, W, R + 1, 4)
+    lit = look.light_rgb[light_index(light.sprite_shade, light.vis / s_near, light.max_vis)]  # (K, 3)
+    cover = (cum[:, :, 1:] - cum[:, :, :-1]) * (fy / s_near / dy)[:, None, None, None]  # (K, W, R, 4)
     cover = jnp.where(shown[:, :, None, None], cover, 0.0)
     order = jnp.argsort(-s_depth)
     for i in range(sprites.pos.shape[0]):
