@@ -135,7 +135,7 @@ def test_collision_slides_along_a_wall():
     pose = motion.Pose.at(jnp.array([290.0, 30.0]), jnp.float32(math.pi / 4))
     params = motion.MotionParams()
     for _ in range(40):
-        pose = motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, params)
+        pose = motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, params, layout.line_dir, layout.block_origin)
     x, y = np.asarray(pose.pos)
     assert x == pytest.approx(320 - params.radius, abs=9)  # pressed against the east wall
     assert x <= 320 - params.radius
@@ -148,7 +148,7 @@ def test_walking_speed_is_doom_like():
     pose = motion.Pose.at(jnp.array([20.0, 64.0]), jnp.float32(0.0))
     p = motion.MotionParams()
     for _ in range(35):  # ~260 units: stays clear of the east wall
-        before, pose = pose, motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, p)
+        before, pose = pose, motion.tic(pose, jnp.int32(motion.FORWARD), layout.boxes, p, layout.line_dir, layout.block_origin)
     speed = float(pose.pos[0] - before.pos[0])
     assert 7.8 < speed < 8.5  # "about 8 units per tic" (Doom: 0.78 thrust, 0.90625 friction)
 
@@ -161,7 +161,7 @@ def test_turning_is_dooms_integer_rule():
     L, R, N = motion.TURN_LEFT, motion.TURN_RIGHT, motion.NOOP
     turns = []
     for a in [L] * 8 + [R] * 2 + [N] + [R] * 2:
-        new = motion.tic(pose, jnp.int32(a), layout.boxes, p)
+        new = motion.tic(pose, jnp.int32(a), layout.boxes, p, layout.line_dir, layout.block_origin)
         turns.append((int(new.angle) - int(pose.angle) + 32768) % 65536 - 32768)
         pose = new
     assert turns == [320] * 5 + [640] * 3 + [-640] * 2 + [0] + [-320] * 2

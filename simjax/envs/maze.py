@@ -64,13 +64,18 @@ class Layout(NamedTuple):
     boxes: jnp.ndarray  # (S, 4) collision boxes of the walls
     items: Items
     spawns: jnp.ndarray  # (K, 2)
+    line_dir: jnp.ndarray  # (S,) +1 where a wall row runs toward +x or +y (its front is on the right)
+    block_origin: jnp.ndarray  # (2,) the lowest vertex coordinates: the blockmap's corner
 
     @staticmethod
     def build(wall_rows, item_rows, spawn_xy) -> "Layout":
+        """Wall rows run like Doom's linedefs, v1 -> v2 with the open side on the right."""
         walls = raycaster.Walls.from_rows(wall_rows)
-        boxes = motion.wall_boxes(np.asarray(walls.start), np.asarray(walls.end))
+        start, end = np.asarray(walls.start), np.asarray(walls.end)
+        boxes = motion.wall_boxes(start, end)
         spawns = jnp.asarray(np.asarray(spawn_xy, np.float32).reshape(-1, 2))
-        return Layout(walls, boxes, Items.build(item_rows), spawns)
+        origin = jnp.asarray(np.minimum(start.min(0), end.min(0)), jnp.float32)
+        return Layout(walls, boxes, Items.build(item_rows), spawns, motion.line_directions(start, end), origin)
 
 
 class MazeState(NamedTuple):
@@ -179,7 +184,7 @@ class MazeEnv(Env):
         world = self.world(ms)
         pose, touched = ms.pose, jnp.zeros_like(ms.collected)
         for _ in range(self.motion_params.tics_per_step):
-            pose = motion.tic(pose, action, world.boxes, self.motion_params)
+            pose = motion.tic(pose, action, world.boxes, self.motion_params, world.line_dir, world.block_origin)
             touched = touched | (self.touches(world.items.pos, pose.pos) & ~ms.collected)
         reward = jnp.sum(jnp.where(touched, world.items.reward, 0.0)).astype(jnp.float32)
         reached = jnp.any(touched & world.items.ends)

@@ -17,11 +17,16 @@ Facts measured in ViZDoom 1.3.2 (shared/reference/vizdoom_facts.md):
 - The player is a square box of half-size 16 (Doom's "radius"). One agent step repeats its
   action for 4 tics.
 
-Collision: each tic the move is tried along x, then along y, each axis against every wall; an
-axis whose move would make the box overlap a wall is refused and its momentum dropped. That is
-sliding: running diagonally into a wall keeps the component along it. Walls must be axis-aligned
-segments (MyWayHome's are, on a 16-unit grid), for which a box-segment overlap test is exact.
-A move of at most ~9 units per axis per tic can never carry a 32-unit box across a wall.
+Collision is ZDoom's (P_XYMovement, P_TryMove, P_SlideMove), for axis-aligned one-sided walls:
+a tic's whole move is taken if the player's box at its end overlaps no wall (a move of at most
+~9 units can never carry a 32-unit box across one). Otherwise the player slides: three traces
+run from the box's leading corners along the move, and the nearest wall line they cross stops the box 1/32 of the move short of it; the rest of the move, with its
+component across that wall removed, becomes the new momentum and is tried from there (twice at
+most). Like Doom's, a short trace counts a line as crossed when its two ends lie on either side
+of the line's infinite extension, for every line in the 128-unit blockmap cells the trace
+touches: walking past the end of a wall can catch on its extension, which is where players part
+most at corners when this is left out. When no line is found, or the tries fail, the move is
+"stairstepped": along y alone, else along x alone, else not at all.
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ ACTION_NAMES = ("turn_left", "turn_right", "forward", "noop")
 ANGLE_UNITS = 65536  # a whole turn in Doom's ticcmd angle units
 _FINE_SHIFT = 3  # Doom's sine table has 8192 entries: angle >> 3 of our 16-bit units
 _RAD_PER_UNIT = 2.0 * math.pi / ANGLE_UNITS
+_BLOCK = 128.0  # Doom's blockmap cell
+_FUDGE = 1.0 / 32.0  # P_SlideMove stops this fraction of the move short of the wall
 
 
 class MotionParams(NamedTuple):
@@ -89,6 +96,11 @@ def _fine_direction(angle) -> jnp.ndarray:
     return jnp.stack([jnp.cos(a), jnp.sin(a)])
 
 
+def line_directions(start: np.ndarray, end: np.ndarray) -> jnp.ndarray:
+    """(S,) +1 where a wall row (Doom's linedef v1 -> v2) runs toward +x or +y, else -1."""
+    return jnp.asarray(np.sign(np.asarray(end) - np.asarray(start)).sum(1), jnp.float32)
+
+
 def wall_boxes(start: np.ndarray, end: np.ndarray) -> jnp.ndarray:
     """(S, 4) boxes [xmin, ymin, xmax, ymax] of axis-aligned segments; refuses diagonal walls."""
     start, end = np.asarray(start), np.asarray(end)
@@ -110,8 +122,89 @@ def overlaps(boxes: jnp.ndarray, pos: jnp.ndarray, radius: float) -> jnp.ndarray
     return jnp.any(hit)
 
 
-def tic(pose: Pose, action: jnp.ndarray, boxes: jnp.ndarray, params: MotionParams) -> Pose:
-    """One simulator tic of the action."""
+def _side(px, py, box, line_dir):
+    """Doom's P_PointOnLineSide for axis-aligned lines: 0 on the front (right of v1 -> v2), 1 on
+    the back. ``box`` (..., 4) [xmin, ymin, xmax, ymax]; ``line_dir`` +1 where v2 is above/right
+    of v1, else -1."""
+    vertical = box[..., 0] == box[..., 2]
+    v_side = jnp.where(px <= box[..., 0], line_dir > 0, line_dir < 0)
+    h_side = jnp.where(py <= box[..., 1], line_dir < 0, line_dir > 0)
+    return jnp.where(vertical, v_side, h_side)
+
+
+def _slide_hit(pos, move, boxes, line_dir, origin, radius):
+    """Doom's three corner traces for P_SlideMove: the nearest crossing fraction (> 1 where
+    none) and whether that line runs along x."""
+    lead = pos + jnp.where(move > 0, radius, -radius)
+    trail = pos - jnp.where(move > 0, radius, -radius)
+    starts = jnp.stack([lead, jnp.stack([trail[0], lead[1]]), jnp.stack([lead[0], trail[1]])])  # (3, 2)
+    ends = starts + move
+    # blockmap cells: a start exactly on a cell edge is nudged one unit in (ZDoom), the trace
+    # covers the cells between its ends; a line lies in the cells of its span (its low cell
+    # for a line on a cell edge, and the next one up for an end on an edge)
+    on_edge = jnp.mod(starts - origin, _BLOCK) == 0
+    first = jnp.floor((starts + on_edge - origin) / _BLOCK)
+    last = jnp.floor((ends - origin) / _BLOCK)
+    t_lo, t_hi = jnp.minimum(first, last), jnp.maximum(first, last)  # (3, 2)
+    l_lo = jnp.floor((boxes[:, :2] - origin) / _BLOCK)  # (S, 2)
+    l_hi = jnp.floor((boxes[:, 2:] - origin) / _BLOCK)
+    near = jnp.all((l_lo[None] <= t_hi[:, None]) & (l_hi[None] >= t_lo[:, None]), axis=-1)  # (3, S)
+    s0 = _side(starts[:, None, 0], starts[:, None, 1], boxes[None], line_dir[None])
+    s1 = _side(ends[:, None, 0], ends[:, None, 1], boxes[None], line_dir[None])
+    vertical = boxes[:, 0] == boxes[:, 2]
+    along = jnp.where(vertical, 0, 1)  # the axis the line is fixed on
+    at = jnp.where(vertical, boxes[:, 0], boxes[:, 1])
+    d = jnp.where(vertical[None], move[0], move[1])  # (1, S)
+    frac = (at[None] - jnp.take_along_axis(starts, jnp.broadcast_to(along[None, :], (3, along.shape[0])), 1)) / jnp.where(d == 0, 1e-9, d)
+    # (Doom skips a one-sided line seen from its back; every wall here blocks from both sides,
+    # and a MyWayHome player is never behind one)
+    hit = near & (s0 != s1) & (frac >= 0)
+    frac = jnp.where(hit, frac, 2.0).min(axis=0)  # (S,)
+    best = jnp.argmin(frac)
+    return frac[best], ~vertical[best]
+
+
+def _move(pos, vel, boxes, line_dir, origin, radius):
+    """One tic's move of the player box with momentum ``vel``: (new pos, new momentum)."""
+    clear = lambda p: ~overlaps(boxes, p, radius)
+    full = pos + vel
+    done = clear(full)
+    p, v, tryv = jnp.where(done, full, pos), vel, vel
+    stair = jnp.bool_(False)
+    for _ in range(2):  # ZDoom gives up and stairsteps on the third hit
+        active = ~done & ~stair
+        best, along_x = _slide_hit(p, tryv, boxes, line_dir, origin, radius)
+        no_line = best > 1.0
+        frac = best - _FUDGE
+        up = p + tryv * jnp.maximum(frac, 0.0)
+        up_ok = (frac <= 0) | clear(up)
+        stair = stair | (active & (no_line | ~up_ok))
+        active = active & ~no_line & up_ok
+        p = jnp.where(active, up, p)
+        rest = jnp.minimum(1.0 - best, 1.0)
+        stop = active & (rest <= 0)  # pressed against the wall: momentum kept as it was
+        done = done | stop
+        active = active & ~stop
+        slid = tryv * rest * jnp.where(along_x, jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]))
+        tryv = jnp.where(active, slid, tryv)
+        v = jnp.where(active, slid, v)
+        ok = clear(p + tryv)
+        p = jnp.where(active & ok, p + tryv, p)
+        done = done | (active & ok)
+    stair = stair | ~done
+    only_y = p + jnp.stack([0.0, v[1]])
+    only_x = p + jnp.stack([v[0], 0.0])
+    y_ok, x_ok = clear(only_y), clear(only_x)
+    sp = jnp.where(y_ok, only_y, jnp.where(x_ok, only_x, p))
+    sv = jnp.where(y_ok, v * jnp.array([0.0, 1.0]), jnp.where(x_ok, v * jnp.array([1.0, 0.0]), 0.0))
+    return jnp.where(stair, sp, p), jnp.where(stair, sv, v)
+
+
+def tic(pose: Pose, action: jnp.ndarray, boxes: jnp.ndarray, params: MotionParams,
+        line_dir: jnp.ndarray, origin: jnp.ndarray) -> Pose:
+    """One simulator tic of the action. ``boxes`` (S, 4) are the walls, ``line_dir`` (S,) their
+    direction (+1 where the linedef runs up or right), ``origin`` (2,) the blockmap's corner
+    (the map's lowest vertex coordinates)."""
     turning = (action == TURN_LEFT) | (action == TURN_RIGHT)
     turn_tics = jnp.where(turning, jnp.minimum(pose.turn_tics + 1, params.slow_turn_tics), 0)
     rate = jnp.where(turn_tics < params.slow_turn_tics, params.slow_turn_units_per_tic, params.turn_units_per_tic)
@@ -120,13 +213,7 @@ def tic(pose: Pose, action: jnp.ndarray, boxes: jnp.ndarray, params: MotionParam
 
     walking = action == FORWARD
     vel = pose.vel + jnp.where(walking, params.thrust, 0.0) * _fine_direction(angle)
-    try_x = pose.pos.at[0].add(vel[0])
-    block_x = overlaps(boxes, try_x, params.radius)
-    pos = jnp.where(block_x, pose.pos, try_x)
-    try_y = pos.at[1].add(vel[1])
-    block_y = overlaps(boxes, try_y, params.radius)
-    pos = jnp.where(block_y, pos, try_y)
-    vel = jnp.where(jnp.stack([block_x, block_y]), 0.0, vel)
+    pos, vel = _move(pose.pos, vel, boxes, line_dir, origin, params.radius)
     stopped = ~walking & jnp.all(jnp.abs(vel) < params.stop_speed)
     vel = jnp.where(stopped, 0.0, vel * params.friction)
     return Pose(pos, heading_of(angle), vel, angle, turn_tics.astype(jnp.int32))

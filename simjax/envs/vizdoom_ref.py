@@ -414,7 +414,8 @@ def resize_area(image: np.ndarray, out_h: int, out_w: int) -> np.ndarray:
     wy, wx = area_weights(img.shape[0], out_h), area_weights(img.shape[1], out_w)
     if img.ndim == 2:
         return wy @ img @ wx.T
-    return np.einsum("ij,jkc,lk->ilc", wy, img, wx)
+    # two matrix products per channel: numpy's three-operand einsum takes ~200 ms a frame
+    return np.stack([wy @ img[..., c] @ wx.T for c in range(img.shape[2])], axis=-1)
 
 
 def resize42(frame: np.ndarray) -> np.ndarray:

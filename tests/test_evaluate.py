@@ -1,0 +1,129 @@
+"""The evaluation command (simjax.evaluate) on a tiny trained run: both backends, the JSON it
+writes, determinism, its refusals, and that the ViZDoom backend shows the policy the frames
+simjax draws. Skipped where vizdoom is not installed."""
+
+import json
+import math
+import shutil
+
+import jax
+import numpy as np
+import pytest
+from PIL import Image
+
+pytest.importorskip("vizdoom")
+
+from simjax import evaluate  # noqa: E402
+from simjax import train as cli  # noqa: E402
+from simjax.agents import TrainConfig  # noqa: E402
+from simjax.envs import make  # noqa: E402
+from simjax.envs import vizdoom_ref as vr  # noqa: E402
+
+FIELDS = {"run", "env", "backend", "seed_index", "seed", "env_steps", "eval_seed", "greedy", "max_steps",
+          "policy", "random", "command", "date", "versions", "video"}
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A maze-dense run of two seeds trained for one 8-step update: a checkpoint to evaluate."""
+    config = TrainConfig(env="maze-dense", num_envs=2, rollout_len=4, total_steps=8, log_every=8, num_seeds=2)
+    return cli.run(config, tmp_path_factory.mktemp("eval") / "run", quiet=True)
+
+
+def _check(record, backend, max_steps, episodes):
+    assert set(record) == FIELDS
+    assert record["backend"] == backend and record["env"] == "maze-dense" and record["env_steps"] == 8
+    assert record["max_steps"] == max_steps and record["versions"]["vizdoom"] == vr.vzd.__version__
+    assert "--max-steps" in record["command"]
+    for name in ("policy", "random"):
+        r = record[name]
+        assert r["episodes"] == episodes and 0.0 <= r["success_ratio"] <= 1.0
+        lo, hi = r["success_95"]
+        assert 0.0 <= lo <= r["success_ratio"] <= hi <= 1.0
+        assert 1 <= r["mean_episode_length"] <= max_steps
+
+
+def test_simjax_backend_all_seeds_and_determinism(run_dir, capsys):
+    args = [str(run_dir), "--backend", "simjax", "--episodes", "2", "--max-steps", "20", "--quiet"]
+    assert evaluate.main(args + ["--all-seeds"]) == 0
+    out = capsys.readouterr().out
+    assert "policy" in out and "random" in out and "95% interval" in out
+    first = [json.loads((run_dir / f"evaluate-simjax-seed{k}.json").read_text()) for k in (0, 1)]
+    for k, record in enumerate(first):
+        _check(record, "simjax", 20, 2)
+        assert record["seed_index"] == record["seed"] == k
+    assert evaluate.main(args + ["--seed-index", "0"]) == 0  # the same eval seed: the same episodes
+    again = json.loads((run_dir / "evaluate-simjax-seed0.json").read_text())
+    assert (again["policy"], again["random"]) == (first[0]["policy"], first[0]["random"])
+
+
+def test_vizdoom_backend_and_video(run_dir, tmp_path):
+    video = tmp_path / "episodes.gif"
+    args = [str(run_dir), "--backend", "vizdoom", "--episodes", "2", "--max-steps", "20", "--quiet",
+            "--seed-index", "1", "--video", str(video), "--video-episodes", "1"]
+    assert evaluate.main(args) == 0
+    record = json.loads((run_dir / "evaluate-vizdoom-seed1.json").read_text())
+    _check(record, "vizdoom", 20, 2)
+    assert record["seed"] == 1 and record["video"] == str(video)
+    with Image.open(video) as gif:
+        assert 1 <= gif.n_frames <= 20
+
+
+@pytest.mark.parametrize("bad, message", [
+    (["--backend", "vizdoom", "--episodes", "0"], "--episodes must be at least 1"),
+    (["--backend", "doom"], "invalid choice: 'doom'"),
+    (["--backend", "simjax", "--max-steps", "600"], "--max-steps must lie in [1, 525]"),
+    (["--backend", "simjax", "--seed-index", "2"], "the run has 2 seed(s)"),
+])
+def test_bad_flags_are_refused_before_compiling(run_dir, bad, message, capsys, monkeypatch):
+    monkeypatch.setattr(evaluate, "load_policy", lambda *a: pytest.fail("must not load or compile"))
+    with pytest.raises(SystemExit):
+        evaluate.main([str(run_dir), *bad])
+    assert message in capsys.readouterr().err
+
+
+def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(evaluate, "load_policy", lambda *a: pytest.fail("must not load or compile"))
+    with pytest.raises(SystemExit):
+        evaluate.main([str(tmp_path / "nowhere"), "--backend", "simjax"])
+    assert "no such run folder" in capsys.readouterr().err
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    shutil.copy(run_dir / "config.json", bare / "config.json")
+    with pytest.raises(SystemExit):
+        evaluate.main([str(bare), "--backend", "vizdoom"])
+    err = capsys.readouterr().err
+    assert "has no checkpoint.msgpack" in err and "not kept in git" in err and "--resume" in err
+    tiny = tmp_path / "tiny"
+    tiny.mkdir()
+    cli.write_config(tiny, TrainConfig(env="maze-tiny"))
+    (tiny / "checkpoint.msgpack").write_bytes(b"")
+    with pytest.raises(SystemExit):
+        evaluate.main([str(tiny), "--backend", "vizdoom"])
+    err = capsys.readouterr().err
+    assert "plays MyWayHome" in err and "maze-tiny" in err
+
+
+def test_wilson_interval():
+    assert evaluate.wilson(0, 10)[0] == 0.0 and evaluate.wilson(10, 10)[1] == 1.0
+    lo, hi = evaluate.wilson(50, 100)
+    assert math.isclose(lo, 0.4038, abs_tol=1e-4) and math.isclose(hi, 0.5962, abs_tol=1e-4)
+
+
+def test_the_policy_sees_in_vizdoom_what_simjax_draws_at_the_same_pose():
+    """The first frame the ViZDoom backend hands the policy (random spots, and the sparse task's
+    start) against simjax's render at the pose ViZDoom reports."""
+    seen = []
+
+    def choose(i):
+        return lambda view: seen.append((view, game.pose())) or 3
+
+    with vr.MyWayHome(seed=0, depth=False) as game:
+        for start in (None, None, vr.TASK_STARTS["maze-sparse"]):
+            evaluate.vizdoom_episodes(game, start, choose, [len(seen)], steps=1, record=0)
+    env = make("maze-dense")
+    reset_to = jax.jit(env.reset_to)
+    for view, (x, y, angle) in seen:
+        ours = np.asarray(reset_to(jax.random.PRNGKey(0), np.array([x, y], np.float32), math.radians(angle)).obs)
+        assert view.shape == ours.shape == (42, 42, 3) and view.dtype == np.uint8
+        assert np.abs(view.astype(int) - ours.astype(int)).mean() < 15
