@@ -1,9 +1,10 @@
 """``make bench``: renderer and training-loop throughput, written to BENCHMARKS.md.
 
 Measures, each as the median of several calls of one compiled program (compile time apart):
-- the environment alone (Doom-like motion, 4 tics, plus one render per agent step, random
-  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second; and at
-  1024 environments for ``melon`` and ``explore-goals``;
+- the environment alone (Doom's motion, 4 tics, plus one render per agent step, random
+  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second; at 1024
+  environments the same MyWayHome task drawn with the invented looks instead of the Freedoom
+  textures, and ``melon`` and ``explore-goals``;
 - maze generation alone (``explore-goals``: spanning tree, loops, looks, walls and boxes), as
   mazes per second for 9x9 and 11x11 cells, and its share of the ``explore-goals`` env's time
   (one maze per env per 1350-step episode: the env generates only on steps where an episode
@@ -33,6 +34,7 @@ import jax.numpy as jnp
 
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
+from simjax.envs.maze import MazeEnv
 
 
 def time_call(fn, *args, repeats: int = 5):
@@ -55,8 +57,9 @@ def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
     return 2 * n**3 / med
 
 
-def bench_env(task: str, num_envs: int, steps: int = 64) -> dict:
-    env = make(task)
+def bench_env(task, num_envs: int, steps: int = 64) -> dict:
+    """``task``: a task name or an env."""
+    env = make(task) if isinstance(task, str) else task
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
 
     def run(state, key):
@@ -172,6 +175,11 @@ def main(argv=None) -> int:
     started = time.time()
     peak = matmul_peak()
     envs = [bench_env(args.task, n) for n in (256, 1024, 4096)]
+    invented = None
+    if args.task.startswith("maze-") and make(args.task).look is not None:
+        # the same task drawn with raycaster's invented looks, as before the Freedoom textures
+        env = make(args.task)
+        invented = bench_env(MazeEnv(env.layout, env.task), 1024)
     worlds = {task: bench_env(task, 1024) for task in ("melon", "explore-goals")}
     world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
     mazes = [bench_maze_generation(c) for c in (9, 11)]
@@ -188,6 +196,9 @@ def main(argv=None) -> int:
     ]
     for r in envs:
         lines.append(f"| environment (motion + render) | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
+    if invented:
+        r = invented
+        lines.append(f"| environment, invented looks (no textures) | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
     for task, r in worlds.items():
         lines.append(f"| environment, `{task}` | {r['envs']} | {r['steps_per_s']:,.0f} | {r['compile_s']:.1f} | | |")
     for r in trains:

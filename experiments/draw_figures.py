@@ -36,7 +36,7 @@ def main():
     DOCS.mkdir(exist_ok=True)
     env = make("maze-dense")
     fig, ax = plt.subplots(figsize=(7, 6))
-    draw_topdown(env.layout, ax=ax, title="MyWayHome (walls in their texture colours)")
+    draw_topdown(env.layout, ax=ax, title="MyWayHome (one colour per wall texture)")
     for caption, x, y, deg in VIEWS:
         ax.arrow(x, y, 30 * math.cos(math.radians(deg)), 30 * math.sin(math.radians(deg)), width=6, color="tab:red")
     for spot, (x, y) in mywayhome_map.SPAWN_SPOTS.items():
