@@ -1,14 +1,18 @@
 """MyWayHome as ViZDoom draws it: Freedoom's textures and Doom's light, seen through ViZDoom's
 160x120 screen and area-averaged to the agent's 42x42 frame.
 
-The paper's 42x42x3 observations are ViZDoom's 160x120 frames resized (ICM's code: OpenCV's
-area interpolation). Rendering all 19,200 pixels of that screen and then resizing would cost
-more than the rest of an environment step many times over, so this renderer computes the
-resized frame directly, exactly where it can:
+The paper's 42x42x3 observations are made from ViZDoom's 160x120 frames; here, as in
+``vizdoom_ref.resize42`` that the tests compare against, by area-averaging. (ICM's own code
+took a greyscale, bilinear route; the paper's frames are RGB.) Rendering all 19,200 pixels of
+that screen and then resizing would cost more than the rest of an environment step many times
+over, so this renderer computes the averaged frame directly, exactly where it can:
 
-- Columns: one ray per screen column of the 160 (Doom draws each screen column from one texel
-  column of the wall it hits, ``u`` point-sampled like Doom); an output column is the area
-  average of the 3.8 screen columns it covers (fixed weights, ``_area_weights``).
+- Columns: one ray per output column, through its centre. The 3.8 screen columns an output
+  column averages show texel columns across a footprint of ``du`` texels (the change of u to
+  the neighbouring output column on the same wall); the texture box-filtered across the
+  nearest power of two of texels (``_box_levels``, 1 to 64) stands in for them. This is the
+  one approximation of the averaging that is not exact: a column that straddles two walls
+  shows only the one its centre sees.
 - Rows: along one screen column a wall's texels are stretched by depth / focal per screen row.
   The mean over an output row's span of screen rows is the integral of the texture column over
   the wall heights that span sees, read from per-column prefix sums (two lookups per row edge,
@@ -20,8 +24,8 @@ resized frame directly, exactly where it can:
   per floor or ceiling row from the row's plane distance; each table darkens the palette
   colours by about 1/32 more than the one before.
 - Items are Doom sprites (the green armour for the goal): billboards whose screen columns map
-  to sprite columns like a wall's, drawn over what they hide, with their transparent texels as
-  partial coverage after averaging; a nearer wall hides them per screen column.
+  to sprite columns like a wall's (filtered the same way), drawn over what they hide, with their
+  transparent texels as partial coverage after averaging; a nearer wall hides them per column.
 - MyWayHome's ViZDoom frames show no weapon (the scenario's player holds none) and no HUD.
 
 Textures, palette and sprite come from Freedoom (``simjax/envs/assets``, converted from the

@@ -1,4 +1,4 @@
-"""A pure first-person raycaster over 2-D wall segments (Wolfenstein-style, Doom-like look).
+"""A pure first-person raycaster over 2-D wall segments with invented wall looks.
 
 One call renders one pose; ``jax.vmap`` renders thousands. For each of the ``width`` screen
 columns a ray is cast against every wall segment and the nearest hit wins (brute force over
@@ -7,6 +7,7 @@ data-dependent loop). Walls get perspective height, a look per texture (colour a
 pattern, so rooms can be told apart), distance fog and side shading; floor and ceiling are
 flat with distance shading; items (the goal vest, fruits) are billboard sprites with a look
 each, drawn through a per-pixel depth buffer so that nearer walls and nearer sprites hide them.
+The MyWayHome tasks are drawn as ViZDoom draws them by ``doom_render``, on this module's rays.
 
 Conventions: world units are Doom map units, y grows upward, ``heading`` is radians counter-
 clockwise from +x. Screen column 0 is the left edge, row 0 the top.
@@ -24,10 +25,12 @@ import numpy as np
 
 # Texture looks: (base RGB, alternate RGB, pattern period along the wall, period up the wall).
 # A texel is `alt` where floor(u / pu) + floor(v / pv) is odd; a huge period gives stripes.
-# The first nine stand for MyWayHome's textures, in mywayhome_map.TEXTURE_NAMES order; the
-# rest are spare looks for other layouts.
+# The first nine are invented stand-ins for MyWayHome's textures, in mywayhome_map.TEXTURE_NAMES
+# order (the maze-* tasks draw the real Freedoom textures instead, ``doom_render``; these serve
+# maze-tiny, melon and explore-goals, and MyWayHome drawn without textures); the rest are spare
+# looks for other layouts.
 #
-# The nine are calibrated to be equally "loud" (2026-11-24, `experiments/look_loudness.py`):
+# The nine are calibrated to be equally "loud" (`experiments/look_loudness.py`):
 # a novelty bonus is a prediction error against a random network's output, so a wall whose
 # frames spread that output widely pays more at the same relative accuracy. Bright walls over
 # the dark floor were several times louder than dark ones: on the map, the cyan room's target
