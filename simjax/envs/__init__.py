@@ -16,6 +16,10 @@ The paper's other two worlds (``simjax.envs.melon``, ``simjax.envs.explore_goals
 
 Any gymnax environment: ``gymnax:NAME`` (``simjax.envs.gymnax_adapter``), e.g.
 ``gymnax:CartPole-v1`` or ``gymnax:Breakout-MinAtar``.
+
+Every env is a brax ``Env`` (``simjax.envs.base``) that auto-resets and reports its episodes
+the same way (``simjax.envs.episodes``, which also holds ``rollout``, the stepping loop the
+learner and the diagnostics share).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from __future__ import annotations
 from typing import Callable
 
 from simjax.envs import mywayhome_map
+from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
 from simjax.envs.explore_goals import ExploreGoalsEnv
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
 from simjax.envs.melon import MELON_TASK, melon_layout
@@ -91,4 +96,5 @@ def make(name: str):
 
 
 __all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv",
-           "mywayhome_layout", "tiny_layout", "melon_layout", "random_walks"]
+           "mywayhome_layout", "tiny_layout", "melon_layout", "random_walks", "rollout", "given_actions",
+           "starts_episode", "episode_metrics", "uniform_policy"]

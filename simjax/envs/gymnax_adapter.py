@@ -11,6 +11,9 @@ keeps our tasks' conventions:
   ``episode_success`` is always 0 (gymnax has no notion of success: read the return);
 - observations are float32 with the environment's own shape, e.g. (4,) for CartPole (the
   actor-critic then encodes them with a dense layer) or (10, 10, C) for MinAtar (convolutions).
+  A 2-D observation (bsuite's Catch, DeepSea) is an image of one channel and gets that channel
+  axis, (H, W, 1), because the learner's networks read images as (H, W, C); a scalar one
+  (FrozenLake's cell) becomes a vector of one, (1,).
 Only discrete action spaces are accepted: the policy is categorical.
 """
 
@@ -20,7 +23,9 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
-from brax.envs.base import Env, State
+
+from simjax.envs.base import Env, State
+from simjax.envs.episodes import episode_metrics
 
 
 def _gymnax():
@@ -32,7 +37,8 @@ def _gymnax():
 
 
 def check_gymnax_name(name: str) -> None:
-    """A clear error for a name gymnax does not know or an action space we cannot drive."""
+    """A clear error for a name gymnax does not know (its action space is checked where the
+    env is built, ``GymnaxEnv``)."""
     gymnax = _gymnax()
     if name not in gymnax.registered_envs:
         raise ValueError(f"unknown gymnax environment {name!r}; gymnax knows: {', '.join(gymnax.registered_envs)}")
@@ -60,7 +66,7 @@ class GymnaxEnv(Env):
                 "categorical, so only discrete action spaces are supported"
             )
         self._num_actions = int(space.n)
-        self._obs_shape = tuple(int(d) for d in self.env.observation_space(self.params).shape)
+        self._obs_shape = observation_shape(self.env.observation_space(self.params).shape)
 
     @property
     def observation_size(self):
@@ -83,7 +89,7 @@ class GymnaxEnv(Env):
             obs=self._obs(obs),
             reward=zero,
             done=zero,
-            metrics=_episode_metrics(zero, zero, zero),
+            metrics=episode_metrics(zero, zero, zero, zero),
             info={"truncation": zero},
         )
 
@@ -95,7 +101,7 @@ class GymnaxEnv(Env):
         terminated, truncated = jnp.asarray(terminated, bool), jnp.asarray(truncated, bool)
         done = terminated | truncated
         steps, ep_return = ps.steps + 1, ps.ep_return + reward
-        metrics = _episode_metrics(done, steps, ep_return)
+        metrics = episode_metrics(done, 0.0, steps, ep_return)  # gymnax has no success
         steps = jnp.where(done, 0, steps)
         ep_return = jnp.where(done, 0.0, ep_return)
         return state.replace(
@@ -111,11 +117,10 @@ class GymnaxEnv(Env):
         return jnp.asarray(obs, jnp.float32).reshape(self._obs_shape)
 
 
-def _episode_metrics(done, length, ret):
-    f = lambda x: jnp.asarray(x, jnp.float32)
-    return {
-        "episode_done": f(done),
-        "episode_success": jnp.float32(0.0),
-        "episode_length": f(length),
-        "episode_return": f(ret),
-    }
+def observation_shape(shape) -> tuple[int, ...]:
+    """The shape the learner sees for a gymnax observation of ``shape``: (H, W) frames get a
+    channel axis, a scalar becomes a vector of one; others stay as they are."""
+    shape = tuple(int(d) for d in shape)
+    if len(shape) == 2:
+        return shape + (1,)
+    return shape or (1,)
