@@ -24,9 +24,10 @@ import chex
 import jax
 import jax.numpy as jnp
 import numpy as np
-from brax.envs.base import Env, State
 
 from simjax.envs import doom_render, motion, raycaster
+from simjax.envs.base import Env, State
+from simjax.envs.episodes import episode_metrics, given_actions, rollout
 
 
 class Items(NamedTuple):
@@ -174,7 +175,7 @@ class MazeEnv(Env):
             obs=self.render(pose, world, collected),
             reward=zero,
             done=zero,
-            metrics=self._episode_metrics(zero, zero, zero, zero),
+            metrics=episode_metrics(zero, zero, zero, zero),
             info={"truncation": zero},
         )
 
@@ -195,7 +196,7 @@ class MazeEnv(Env):
         truncated = (steps >= self.task.max_steps) & ~reached
         done = reached | truncated
         ep_return = ms.ep_return + reward
-        metrics = self._episode_metrics(done, self._success(reached, ep_return), steps, ep_return)
+        metrics = episode_metrics(done, self._success(reached, ep_return), steps, ep_return)
 
         if not self.auto_reset:
             key = ms.key
@@ -257,16 +258,6 @@ class MazeEnv(Env):
             heading = jnp.float32(self.task.heading)
         return motion.Pose.at(self.layout.spawns[spot], heading)
 
-    @staticmethod
-    def _episode_metrics(done, success, length, ret):
-        f = lambda x: jnp.asarray(x, jnp.float32)
-        return {
-            "episode_done": f(done),
-            "episode_success": f(success),
-            "episode_length": f(length),
-            "episode_return": f(ret),
-        }
-
 
 def random_walks(env: Env, key: chex.PRNGKey, num_envs: int, steps: int):
     """Uniform random actions in ``num_envs`` copies of a maze env for ``steps`` steps (episodes
@@ -278,10 +269,9 @@ def random_walks(env: Env, key: chex.PRNGKey, num_envs: int, steps: int):
     state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
     actions = jax.random.randint(k_act, (steps, num_envs), 0, env.action_size)
 
-    def step(state, action):
-        nxt = jax.vmap(env.step)(state, action)
-        return nxt, (state.obs, state.pipeline_state.pose.pos, nxt.done)
+    def keep(state, action, nxt):
+        return state.obs, state.pipeline_state.pose.pos, nxt.done
 
-    last, (obs, pos, done) = jax.lax.scan(step, state, actions)
+    last, _, (obs, pos, done) = rollout(env, given_actions, state, (), actions, keep)
     pos = jnp.concatenate([pos, last.pipeline_state.pose.pos[None]], axis=0)
     return obs, actions, last.obs, pos, done
