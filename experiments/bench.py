@@ -32,6 +32,7 @@ import statistics
 import jax
 import jax.numpy as jnp
 
+from simjax import runtime
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
 from simjax.envs.maze import MazeEnv
@@ -171,6 +172,7 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     args = parser.parse_args(argv)
+    runtime.configure()
 
     started = time.time()
     peak = matmul_peak()

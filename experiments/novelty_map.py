@@ -35,11 +35,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax.agents import make_trainer  # noqa: E402
-from simjax.envs import MazeEnv, MazeTask, make, mywayhome_layout, mywayhome_map, random_walks  # noqa: E402
+from simjax import runtime  # noqa: E402
+from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, random_walks  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
-from simjax.train import load_checkpoint, load_config, seed_keys  # noqa: E402
+from simjax.runs import restore  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
@@ -57,25 +57,26 @@ def main(argv=None) -> int:
     parser.add_argument("--walks", type=int, default=16, help="random walks per spawn spot")
     parser.add_argument("--steps", type=int, default=60, help="steps per walk")
     args = parser.parse_args(argv)
-    if not (args.run / "checkpoint.msgpack").exists():
-        parser.error(f"{args.run} has no checkpoint.msgpack")
-    config = load_config(args.run)
+    runtime.configure()
+    try:
+        restored = restore(args.run)
+    except FileNotFoundError as err:
+        parser.error(str(err))
+    config = restored.config
     if config.env not in MYWAYHOME_TASKS or config.algo == "a2c":
         parser.error(f"needs a run on {', '.join(MYWAYHOME_TASKS)} with a novelty model (sim, rnd, icm)")
-    trainer = make_trainer(config)
+    trainer = restored.trainer
     model = trainer.novelty.model
     if args.steps <= model.history + 1:
         parser.error(f"--steps must exceed the model's window ({model.history + 1} frames)")
-    keys = seed_keys(config)
-    ckpt = load_checkpoint(args.run, template=jax.eval_shape(jax.vmap(trainer.init), keys))
-    runner = ckpt["runner"]
+    runner = restored.runner()
 
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     xy = np.asarray([mywayhome_map.SPAWN_SPOTS[s] for s in spots])
     start = np.asarray(mywayhome_map.SPAWN_SPOTS[10])
 
     # the policy's side: which spots its own episodes come near
-    env = make(config.env)
+    env = restored.env
     policy_run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, 16))
     visits = []
     for i in range(config.num_seeds):
@@ -125,8 +126,8 @@ def main(argv=None) -> int:
             m = mask.reshape(args.steps, len(spots), args.walks)
             spreads.append(np.asarray([spread(t[:, j][m[:, j]]) for j in range(len(spots))]))
 
-    seeds = ckpt["seeds"]
-    print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed; {args.walks} random walks "
+    seeds = restored.seeds
+    print(f"{args.run.name} at {restored.env_steps:,} agent steps per seed; {args.walks} random walks "
           f"of {args.steps} steps per spot; visits: share of 16 policy episodes within {NEAR:.0f} units")
     header = "spot  from start  " + "  ".join(
         f"visits s{s}  error s{s}" + (f"  spread s{s}" if has_target else "") for s in seeds)

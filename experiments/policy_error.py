@@ -42,11 +42,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from novelty_map import MYWAYHOME_TASKS
 
-from simjax.agents import make_trainer
-from simjax.agents.a2c import starts_episode
-from simjax.envs import make, mywayhome_map, raycaster
+from simjax import runtime
+from simjax.agents import sampling_policy
+from simjax.envs import given_actions, mywayhome_map, raycaster, rollout, starts_episode, uniform_policy
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames
-from simjax.train import load_checkpoint, load_config, seed_keys
+from simjax.runs import restore
 
 NEAR = 128.0  # units
 NUM_ENVS = 16
@@ -60,44 +60,38 @@ def main(argv=None) -> int:
     parser.add_argument("--chunks", type=int, default=0, help="part 2: chunks of novelty-only training")
     parser.add_argument("--chunk-updates", type=int, default=40)
     args = parser.parse_args(argv)
-    if not (args.run / "checkpoint.msgpack").exists():
-        parser.error(f"{args.run} has no checkpoint.msgpack")
+    runtime.configure()
     if args.spot not in mywayhome_map.SPAWN_SPOTS:
         parser.error(f"unknown spawn spot {args.spot}; known: {sorted(mywayhome_map.SPAWN_SPOTS)}")
     if args.chunks < 0 or args.chunk_updates < 1:
         parser.error("need --chunks >= 0 and --chunk-updates >= 1")
-    config = load_config(args.run)
+    try:
+        restored = restore(args.run)
+    except FileNotFoundError as err:
+        parser.error(str(err))
+    config = restored.config
     if config.algo == "a2c" or config.env not in MYWAYHOME_TASKS:
         parser.error(f"needs a run on {', '.join(MYWAYHOME_TASKS)} with a novelty model (sim, rnd, icm)")
     if not 0 <= args.seed_index < config.num_seeds:
         parser.error(f"--seed-index must be in [0, {config.num_seeds})")
-    trainer = make_trainer(config)
+    trainer, env = restored.trainer, restored.env
     model, network = trainer.novelty.model, trainer.network
-    keys = seed_keys(config)
-    ckpt = load_checkpoint(args.run, template=jax.eval_shape(jax.vmap(trainer.init), keys))
-    runner = jax.tree.map(lambda x: x[args.seed_index], ckpt["runner"])
-    env = make(config.env)
+    runner = restored.runner(args.seed_index)
     n = NUM_ENVS
 
     def episodes(key, random: bool):
         k_reset, k_act = jax.random.split(key)
         state = jax.vmap(env.reset)(jax.random.split(k_reset, n))
+        act = uniform_policy(env.action_size, n) if random else sampling_policy(network, runner.params["policy"])
 
-        def step(carry_state, k):
-            state, carry = carry_state
-            if random:
-                action = jax.random.randint(k, (n,), 0, env.action_size)
-            else:
-                carry, logits, _ = network.apply(runner.params["policy"], carry, state.obs[None], starts_episode(state)[None])
-                action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
-            nxt = jax.vmap(env.step)(state, action)
+        def record(state, action, nxt):
             # how far the frame this step leads to sees: its farthest wall (through a door, a corridor)
             view = jax.vmap(lambda p, h: jnp.max(raycaster.cast_rays(env.layout.walls, p, h)[0]))(
                 nxt.pipeline_state.pose.pos, nxt.pipeline_state.pose.heading)
-            return (nxt, carry), (state.obs, action, state.pipeline_state.pose.pos, view, nxt.done)
+            return state.obs, action, state.pipeline_state.pose.pos, view, nxt.done
 
-        (last, _), (obs, action, pos, view, done) = jax.lax.scan(
-            step, (state, network.initial_carry(n)), jax.random.split(k_act, env.task.max_steps))
+        last, _, (obs, action, pos, view, done) = rollout(
+            env, act, state, network.initial_carry(n), jax.random.split(k_act, env.task.max_steps), record)
         reset = jnp.zeros(action.shape, bool).at[0].set(True)
         tl, _ = build_timeline(init_memory(model.history, n, obs.shape[2:], obs.dtype), obs, reset, action,
                                last.obs, jnp.zeros((n,), bool))
@@ -106,7 +100,7 @@ def main(argv=None) -> int:
         return error, scored, action, pos, view, done
 
     spot = np.asarray(mywayhome_map.SPAWN_SPOTS[args.spot])
-    print(f"{args.run.name}, seed index {args.seed_index}, at {int(ckpt['env_steps']):,} agent steps per seed; "
+    print(f"{args.run.name}, seed index {args.seed_index}, at {restored.env_steps:,} agent steps per seed; "
           f"{n} episodes each")
     for random in (False, True):
         error, scored, action, pos, view, done = jax.device_get(jax.jit(episodes, static_argnums=1)(jax.random.PRNGKey(7), random))
@@ -141,15 +135,10 @@ def main(argv=None) -> int:
 
     def update(c, _):
         params, opt_state, env_state, carry, state, key, learn = c
-
-        def env_step(s, k):
-            es, cr = s
-            cr, logits, _ = network.apply(policy, cr, es.obs[None], starts_episode(es)[None])
-            a = jax.random.categorical(k, logits[0]).astype(jnp.int32)
-            return (jax.vmap(env.step)(es, a), cr), (es.obs, starts_episode(es), a)
-
         key, sub = jax.random.split(key)
-        (last, carry), (obs, reset, action) = jax.lax.scan(env_step, (env_state, carry), jax.random.split(sub, T))
+        last, carry, (obs, reset, action) = rollout(env, sampling_policy(network, policy), env_state, carry,
+                                                    jax.random.split(sub, T),
+                                                    lambda s, a, nxt: (s.obs, starts_episode(s), a))
         grads, (_, metrics, state) = jax.grad(novelty.loss_and_bonus, has_aux=True)(
             params, state, obs, reset, action, last.obs, starts_episode(last))
         updates, opt_state = tx.update(grads, opt_state, params)
@@ -192,27 +181,18 @@ def replay_last_actions(env, model, network, runner, config, spot, spot_id, n=NU
     @jax.jit
     def run(key):
         k_reset, k_act, k_replay = jax.random.split(key, 3)
-
-        def step(c, k):
-            state, carry = c
-            carry, logits, _ = network.apply(runner.params["policy"], carry, state.obs[None], starts_episode(state)[None])
-            action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
-            return (jax.vmap(env.step)(state, action), carry), (state, action)
-
         state = jax.vmap(env.reset)(jax.random.split(k_reset, n))
-        _, (states, actions) = jax.lax.scan(step, (state, network.initial_carry(n)),
-                                            jax.random.split(k_act, env.task.max_steps))
+        _, _, (states, actions) = rollout(env, sampling_policy(network, runner.params["policy"]), state,
+                                          network.initial_carry(n), jax.random.split(k_act, env.task.max_steps),
+                                          lambda s, a, nxt: (s, a))
 
         def at(e):  # target frame e (index into the episode), its window starting at e - H - L + 1
             frames = jax.lax.dynamic_slice_in_dim(states.obs, e - H - L + 1, H + L, 0)
             acts = jax.lax.dynamic_slice_in_dim(actions, e - H - L + 1, H + L - 1, 0)
             random = jax.random.randint(jax.random.fold_in(k_replay, e), (L, n), 0, env.action_size)
 
-            def replay(s, a):
-                s = jax.vmap(env.step)(s, a)
-                return s, (s.obs, s.done)
-
-            _, (replayed, ended) = jax.lax.scan(replay, jax.tree.map(lambda x: x[e - L], states), random)
+            _, _, (replayed, ended) = rollout(env, given_actions, jax.tree.map(lambda x: x[e - L], states), (), random,
+                                              lambda s, a, nxt: (nxt.obs, nxt.done))
             own = error_of_last(frames, acts)
             other = error_of_last(jnp.concatenate([frames[:H], replayed]), jnp.concatenate([acts[: H - 1], random]))
             # the whole window and both continuations lie in one episode

@@ -25,9 +25,11 @@ import time
 import jax
 import optax
 
+from simjax import runtime
 from simjax.agents import TrainConfig
-from simjax.agents.a2c import ADAM_EPS, starts_episode
-from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, raycaster
+from simjax.agents.a2c import ADAM_EPS
+from simjax.envs import (MazeEnv, MazeTask, given_actions, mywayhome_layout, mywayhome_map, raycaster, rollout,
+                         starts_episode)
 from simjax.novelty import make_novelty
 
 ROOMS = {10: "start (BIGDOOR2 panels)", 11: "tan (CEIL4_2 checker)", 17: "green (COMP01 bands)",
@@ -37,7 +39,7 @@ ROOMS = {10: "start (BIGDOOR2 panels)", 11: "tan (CEIL4_2 checker)", 17: "green 
 
 def room_trainer(spot: int, config: TrainConfig, updates_per_chunk: int, walk_steps: int = 60):
     env = MazeEnv(mywayhome_layout([spot]), MazeTask(f"room-{spot}", random_heading=True, max_steps=walk_steps))
-    novelty = make_novelty(config, env.action_size, env.observation_size)
+    novelty = make_novelty(config.novelty, env.action_size, env.observation_size)
     tx = optax.chain(optax.clip_by_global_norm(config.max_grad_norm),
                      optax.adam(config.learning_rate, eps=ADAM_EPS))
     n, t = config.num_envs, config.rollout_len
@@ -52,11 +54,8 @@ def room_trainer(spot: int, config: TrainConfig, updates_per_chunk: int, walk_st
         params, opt_state, env_state, state, key = carry
         key, k_act = jax.random.split(key)
         actions = jax.random.randint(k_act, (t, n), 0, env.action_size)
-
-        def step(s, a):
-            return jax.vmap(env.step)(s, a), (s.obs, starts_episode(s))
-
-        last, (obs, reset) = jax.lax.scan(step, env_state, actions)
+        last, _, (obs, reset) = rollout(env, given_actions, env_state, (), actions,
+                                        lambda s, a, nxt: (s.obs, starts_episode(s)))
         grads, (bonus, metrics, state) = jax.grad(novelty.loss_and_bonus, has_aux=True)(
             params, state, obs, reset, actions, last.obs, starts_episode(last))
         updates, opt_state = tx.update(grads, opt_state, params)
@@ -80,6 +79,7 @@ def main(argv=None) -> int:
     parser.add_argument("--look-as", type=int, nargs=2, metavar=("I", "J"), default=None,
                         help="draw texture I with texture J's look")
     args = parser.parse_args(argv)
+    runtime.configure()
     unknown = [s for s in args.spots if s not in mywayhome_map.SPAWN_SPOTS]
     if unknown:
         parser.error(f"unknown spawn spots {unknown}; known: {sorted(mywayhome_map.SPAWN_SPOTS)}")

@@ -19,10 +19,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.agents import make_trainer
-from simjax.agents.a2c import starts_episode
-from simjax.envs import make
-from simjax.train import load_checkpoint, load_config, seed_keys
+from simjax import runtime
+from simjax.agents import sampling_policy
+from simjax.envs import rollout, uniform_policy
+from simjax.runs import restore
 
 
 def episodes(env, network, params, key, num_envs: int):
@@ -30,25 +30,16 @@ def episodes(env, network, params, key, num_envs: int):
     (``params`` None: uniform random actions)."""
     k_reset, k_act = jax.random.split(key)
     state = jax.vmap(env.reset)(jax.random.split(k_reset, num_envs))
+    act = uniform_policy(env.action_size, num_envs) if params is None else sampling_policy(network, params)
 
-    def step(carry_state, k):
-        state, carry, alive = carry_state
-        if params is None:
-            action = jax.random.randint(k, (num_envs,), 0, env.action_size)
-        else:
-            carry, logits, _ = network.apply(params, carry, state.obs[None], starts_episode(state)[None])
-            action = jax.random.categorical(k, logits[0]).astype(jnp.int32)
-        pos = state.pipeline_state.pose.pos
-        state = jax.vmap(env.step)(state, action)
-        success = alive & (state.metrics["episode_success"] > 0) & (state.done > 0)
-        alive = alive & (state.done == 0)
-        return (state, carry, alive), (pos, alive, success)
+    def record(state, action, nxt):
+        return state.pipeline_state.pose.pos, nxt.done > 0, nxt.metrics["episode_success"] > 0
 
-    carry = network.initial_carry(num_envs)
-    alive = jnp.ones((num_envs,), bool)
     keys = jax.random.split(k_act, env.task.max_steps)
-    _, (pos, alive, success) = jax.lax.scan(step, (state, carry, alive), keys)
-    return pos, alive, success.any(axis=0)
+    _, _, (pos, done, success) = rollout(env, act, state, network.initial_carry(num_envs), keys, record)
+    alive = jnp.cumsum(done, axis=0) == 0  # after each step: the first episode goes on
+    first = jnp.concatenate([jnp.ones_like(alive[:1]), alive[:-1]])  # before each step: it is still on
+    return pos, alive, (success & done & first).any(axis=0)
 
 
 def first_episode(pos, alive, n: int) -> np.ndarray:
@@ -72,28 +63,22 @@ def main(argv=None) -> int:
     parser.add_argument("--envs", type=int, default=16)
     parser.add_argument("--random", action="store_true", help="also the uniform random policy")
     args = parser.parse_args(argv)
-    if not (args.run / "checkpoint.msgpack").exists():
-        parser.error(f"{args.run} has no checkpoint.msgpack")
-    config = load_config(args.run)
-    env = make(config.env)
+    runtime.configure()
+    try:
+        restored = restore(args.run)
+    except FileNotFoundError as err:
+        parser.error(str(err))
+    env, network = restored.env, restored.network
     if getattr(env, "generator", None) is not None or not hasattr(env, "layout"):
-        parser.error(f"{config.env} has no fixed map to draw trajectories on")
-    trainer = make_trainer(config)
-    keys = seed_keys(config)
-    from flax import serialization
-
-    # only the policy parameters: they read the same from checkpoints of older env states
-    ckpt = load_checkpoint(args.run)
-    template = jax.eval_shape(jax.vmap(trainer.init), keys).params["policy"]
-    policy = serialization.from_state_dict(template, ckpt["runner"]["params"]["policy"])
+        parser.error(f"{restored.config.env} has no fixed map to draw trajectories on")
     goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
-    run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, args.envs))
+    run = jax.jit(lambda p, k: episodes(env, network, p, k, args.envs))
     drawn = None
-    policies = [(f"seed {s}", jax.tree.map(lambda x, i=i: x[i], policy))
-                for i, s in enumerate(ckpt["seeds"])]
+    # only the policy parameters: they read the same from checkpoints of older env states
+    policies = [(f"seed {s}", restored.policy(i)) for i, s in enumerate(restored.seeds)]
     if args.random:
-        run_random = jax.jit(lambda k: episodes(env, trainer.network, None, k, args.envs))
-    print(f"{args.run.name} at {int(ckpt['env_steps']):,} agent steps per seed, {args.envs} episodes each:")
+        run_random = jax.jit(lambda k: episodes(env, network, None, k, args.envs))
+    print(f"{args.run.name} at {restored.env_steps:,} agent steps per seed, {args.envs} episodes each:")
     for name, params in policies + ([("random", None)] if args.random else []):
         key = jax.random.PRNGKey(123)
         pos, alive, success = jax.device_get(run_random(key) if params is None else run(params, key))

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simjax.train import atomic_write, enable_compilation_cache, load_checkpoint, load_config, seed_keys
+from simjax import runtime
+from simjax.runs.folder import atomic_write, load_config, restore
 
 BACKENDS = ("vizdoom", "simjax")
 VIDEO_FRAMES = 150  # at most this many GIF frames per episode (longer episodes are subsampled)
@@ -101,22 +102,6 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
     if args.video is not None and (getattr(env, "generator", None) is not None or not hasattr(env, "layout")):
         parser.error(f"--video draws the path on a fixed map; {config.env} has none")
     return config, env, limit
-
-
-def load_policy(run_dir: Path, config, env):
-    """(network, policy parameters of every seed (leading axis: seed), checkpoint) of a run.
-
-    Only the policy's parameters are rebuilt (into the types of a fresh init), so checkpoints
-    whose env or novelty state has since changed shape still load."""
-    import jax
-    from flax import serialization
-
-    from simjax.agents import make_trainer
-
-    trainer = make_trainer(config, env)
-    ckpt = load_checkpoint(run_dir)
-    template = jax.eval_shape(jax.vmap(trainer.init), seed_keys(config)).params["policy"]
-    return trainer.network, serialization.from_state_dict(template, ckpt["runner"]["params"]["policy"]), ckpt
 
 
 def policy_step(network, greedy: bool):
@@ -318,6 +303,7 @@ def _version(package: str) -> str | None:
 
 
 def main(argv=None) -> int:
+    runtime.configure()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -329,8 +315,9 @@ def main(argv=None) -> int:
 
     import jax
 
-    enable_compilation_cache()
-    network, params, ckpt = load_policy(args.run, config, env)
+    runtime.enable_compilation_cache()
+    restored = restore(args.run, env)
+    network, params = restored.network, restored.policy()
     act = policy_step(network, args.greedy)
     key = jax.random.PRNGKey(args.eval_seed)
     indices = range(config.num_seeds) if args.all_seeds else [args.seed_index]
@@ -358,17 +345,17 @@ def main(argv=None) -> int:
             random = summarize(*run_random(first)[:2])
         for k in indices:
             seed_params = jax.tree.map(lambda x, k=k: x[k], params)
-            say(f"seed {ckpt['seeds'][k]}: {n} episodes on {args.backend}")
+            say(f"seed {restored.seeds[k]}: {n} episodes on {args.backend}")
             success, length, recorded = run_policy(seed_params)
             results = {"policy": summarize(success, length), "random": random}
             tag = f"-seed{k}" if config.num_seeds > 1 else ""
             video = None
             if args.video:
                 video = args.video if len(indices) == 1 else args.video.with_name(args.video.stem + tag + ".gif")
-                write_gif(video, env.layout, recorded, f"{args.run.name}, seed {ckpt['seeds'][k]}, {args.backend}")
+                write_gif(video, env.layout, recorded, f"{args.run.name}, seed {restored.seeds[k]}, {args.backend}")
             record_json = {
                 "run": str(args.run), "env": config.env, "backend": args.backend, "seed_index": k,
-                "seed": int(ckpt["seeds"][k]), "env_steps": int(ckpt["env_steps"]), "eval_seed": args.eval_seed,
+                "seed": restored.seeds[k], "env_steps": restored.env_steps, "eval_seed": args.eval_seed,
                 "greedy": args.greedy, "max_steps": steps, **results,
                 "command": shlex.join(["python", "-m", "simjax.evaluate", *argv]),
                 "date": dt.datetime.now().isoformat(timespec="seconds"),
@@ -377,7 +364,7 @@ def main(argv=None) -> int:
             }
             out = args.run / f"evaluate-{args.backend}{tag}.json"
             atomic_write(out, json.dumps(record_json, indent=2).encode())
-            print(f"{args.run.name} ({config.env}, seed {ckpt['seeds'][k]}) at {int(ckpt['env_steps']):,} agent "
+            print(f"{args.run.name} ({config.env}, seed {restored.seeds[k]}) at {restored.env_steps:,} agent "
                   f"steps, on {args.backend}, {'greedy' if args.greedy else 'sampled'} actions, episodes of at "
                   f"most {steps} steps:")
             print(table(results))

@@ -1,4 +1,4 @@
-"""The A2C learner, the config and the command line."""
+"""The A2C learner, the config, and the train and fork command lines."""
 
 import csv
 import dataclasses
@@ -12,10 +12,13 @@ import numpy as np
 import pytest
 from flax import serialization
 
+from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer, n_step_returns, summarize, total_reward
 from simjax.agents.a2c import Transition, a2c_loss
 from simjax.envs import make
+from simjax.runs import stall
+from simjax.runs.progress import Progress
 
 
 def test_n_step_returns_by_hand():
@@ -86,24 +89,51 @@ def test_reward_seam():
 @pytest.mark.parametrize("bad,match", [
     (dict(env="maze-nope"), "known tasks"),
     (dict(algo="ppo"), "known algos"),
-    (dict(learning_rate=-1e-4), "learning_rate"),
-    (dict(task_scale=-1.0), "task_scale"),
-    (dict(num_envs=0), "num_envs"),
-    (dict(gamma=1.5), "gamma"),
+    (dict(learning_rate=-1e-4), "--learning-rate"),
+    (dict(task_scale=-1.0), "--task-scale"),
+    (dict(num_envs=0), "--num-envs"),
+    (dict(gamma=1.5), "--gamma"),
     (dict(total_steps=10), "less than one update"),
-    (dict(algo="sim", obs_len=1), "obs_len"),
-    (dict(algo="sim", act_len=0), "act_len"),
-    (dict(obs_len=65), "obs_len"),
-    (dict(bonus_scale=-0.1), "bonus_scale"),
-    (dict(sim_combine="sum"), "sim_combine"),
-    (dict(sim_target="pixels"), "sim_target"),
-    (dict(forward_weight=1.5), "forward_weight"),
-    (dict(rl_weight=0.0), "rl_weight"),
-    (dict(algo="a2c", bonus_episodic=False), "bonus_episodic"),
+    (dict(algo="sim", obs_len=1), "--obs-len"),
+    (dict(algo="sim", act_len=0), "--act-len"),
+    (dict(obs_len=65), "--obs-len"),
+    (dict(bonus_scale=-0.1), "--bonus-scale"),
+    (dict(sim_combine="sum"), "--sim-combine"),
+    (dict(sim_target="pixels"), "--sim-target"),
+    (dict(forward_weight=1.5), "--forward-weight"),
+    (dict(rl_weight=0.0), "--rl-weight"),
+    (dict(algo="a2c", bonus_episodic=False), "--bonus-episodic"),
 ])
 def test_config_rejects_bad_values(bad, match):
     with pytest.raises(ValueError, match=match):
         TrainConfig(**bad)
+
+
+def test_a_config_is_checked_without_building_an_environment(monkeypatch, tmp_path):
+    """Configs are made, replaced and loaded often; only the learner builds the task's env."""
+    from simjax.envs import gymnax_adapter, maze
+
+    def no_env(*args, **kwargs):
+        raise AssertionError("a config built an environment")
+
+    monkeypatch.setattr(maze.MazeEnv, "__init__", no_env)
+    monkeypatch.setattr(gymnax_adapter.GymnaxEnv, "__init__", no_env)
+    config = TrainConfig(env="maze-very-sparse", algo="sim")
+    dataclasses.replace(config, bonus_scale=0.01)
+    runs.write_config(tmp_path, config)
+    assert runs.load_config(tmp_path) == config
+    assert config.novelty.obs_len == config.obs_len and config.novelty.algo == "sim"
+    with pytest.raises(AssertionError, match="built an environment"):
+        make_trainer(config)
+
+
+def test_every_stored_run_folder_still_loads():
+    from pathlib import Path
+
+    folders = [p.parent for p in Path(__file__).resolve().parent.parent.glob("experiments/results/*/config.json")]
+    assert folders
+    for folder in folders:
+        runs.load_config(folder)
 
 
 def test_cli_fails_before_compiling(capsys, monkeypatch):
@@ -114,7 +144,7 @@ def test_cli_fails_before_compiling(capsys, monkeypatch):
     assert "known tasks: maze-dense" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["--task-scale", "-1"])
-    assert "task_scale must be" in capsys.readouterr().err
+    assert "--task-scale must be" in capsys.readouterr().err
 
 
 def test_cli_refuses_to_overwrite_a_run(tmp_path, capsys):
@@ -174,7 +204,7 @@ def random_policy_success(env_name, num_envs=64, steps=400, seed=0):
 def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
     """The whole pipeline through the command line's own run(): A2C beats the random policy."""
     config = TrainConfig(env="maze-tiny", num_envs=32, total_steps=120_000, log_every=20_480, learning_rate=1e-3)
-    out = cli.run(config, tmp_path / "run", quiet=True)
+    out = runs.run(config, tmp_path / "run", quiet=True)
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert len(rows) == config.num_logs == 6
     assert [int(r["env_steps"]) for r in rows] == [20_480 * (i + 1) for i in range(6)]
@@ -200,8 +230,8 @@ def test_a_stopped_run_keeps_what_it_wrote(tmp_path, monkeypatch):
         calls.append(args)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli.Progress, "update", stop_after_first)
-    out = cli.run(_tiny_config(total_steps=400), tmp_path / "run")
+    monkeypatch.setattr(Progress, "update", stop_after_first)
+    out = runs.run(_tiny_config(total_steps=400), tmp_path / "run")
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert len(calls) == 1 and len(rows) == 1 and int(rows[0]["env_steps"]) == 40
     ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
@@ -221,7 +251,7 @@ def test_summarize_reports_nan_without_episodes():
 
 def test_progress_eta_counts_every_seed(capsys):
     # 500 of 1,000 steps per seed left, 2 seeds, 100 steps/s over both: 10 s to go
-    cli.Progress(1000, quiet=False, num_seeds=2).update(500, 100.0, 0.5, 300.0)
+    Progress(1000, quiet=False, num_seeds=2).update(500, 100.0, 0.5, 300.0)
     line = capsys.readouterr().err
     assert "500/1,000 steps per seed" in line and "ETA 0:00:10" in line
 
@@ -249,10 +279,12 @@ def test_cli_novelty_flags_and_their_errors(capsys, monkeypatch):
                                      "--sim-combine", "itr", "--bonus-norm", "on"])
     assert (config.obs_len, config.act_len, config.sim_inverse, config.sim_combine, config.bonus_norm) == (
         4, 1, False, "itr", True)
-    for bad, message in ((["--algo", "sim", "--act-len", "0"], "act_len (L) must lie"),
+    for bad, message in ((["--algo", "sim", "--act-len", "0"], "--act-len (L) must lie"),
                          (["--sim-inverse", "maybe"], "expected true or false"),
-                         (["--bonus-scale", "-1"], "bonus_scale must be"),
-                         (["--resume", "/nonexistent/run"], "not a run folder")):
+                         (["--bonus-scale", "-1"], "--bonus-scale must be"),
+                         (["--resume", "/nonexistent/run"], "not a run folder"),
+                         (["--resume", "/nonexistent/run", "--num-envs", "4"], "give no run settings"),
+                         (["--resume", "/nonexistent/run", "--out", "elsewhere"], "give no run settings")):
         with pytest.raises(SystemExit) as err:
             cli.main(bad)
         assert err.value.code == 2
@@ -293,7 +325,7 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
 
 def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
-    cli.run(config, tmp_path / "whole", quiet=True)
+    runs.run(config, tmp_path / "whole", quiet=True)
     calls = []
 
     def stop_after_first(self, *args):
@@ -301,11 +333,11 @@ def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr(cli.Progress, "update", stop_after_first)
-        cli.run(config, tmp_path / "parts", quiet=True)
+        m.setattr(Progress, "update", stop_after_first)
+        runs.run(config, tmp_path / "parts", quiet=True)
     assert len(list(csv.reader(open(tmp_path / "parts" / "metrics.csv")))) == 2  # header + 1 row
-    cli.run(cli.load_config(tmp_path / "parts"), tmp_path / "parts", quiet=True, resume=True)
-    same = [c for c in cli.METRIC_COLUMNS if c not in ("steps_per_s", "wall_s")]
+    runs.run(runs.load_config(tmp_path / "parts"), tmp_path / "parts", quiet=True, resume=True)
+    same = [c for c in runs.METRIC_COLUMNS if c not in ("steps_per_s", "wall_s")]
     rows = [list(csv.DictReader(open(tmp_path / d / "metrics.csv"))) for d in ("whole", "parts")]
     assert len(rows[0]) == len(rows[1]) == 3
     assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]]
@@ -314,21 +346,29 @@ def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
 def test_supervisor_restarts_a_stalled_worker(tmp_path):
     marker = tmp_path / "attempts"
     script = (f"import pathlib, sys; p = pathlib.Path({str(marker)!r}); n = len(p.read_text()) if p.exists() else 0; "
-              f"p.write_text('x' * (n + 1)); sys.exit({cli.STALLED} if n < 2 else 0)")
-    assert cli.supervise(tmp_path, True, max_restarts=5, cmd=[sys.executable, "-c", script]) == 0
+              f"p.write_text('x' * (n + 1)); sys.exit({stall.STALLED} if n < 2 else 0)")
+    limits = []
+
+    def worker(limit):
+        limits.append(limit)
+        return [sys.executable, "-c", script]
+
+    assert stall.supervise(worker, tmp_path, max_restarts=5, stall_timeout=10.0) == 0
     assert marker.read_text() == "xxx"  # stalled twice, then finished
+    assert limits == [10.0, 20.0, 40.0]  # no checkpoint moved on: each try gets twice the time
     marker.unlink()
-    assert cli.supervise(tmp_path, True, max_restarts=1, cmd=[sys.executable, "-c", script]) == cli.STALLED
+    assert stall.supervise(worker, tmp_path, max_restarts=1) == stall.STALLED
 
 
 def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, capsys):
     from simjax import fork
 
     config = _tiny_config(algo="rnd", num_envs=2, rollout_len=4, total_steps=16, log_every=8)
-    cli.run(config, tmp_path / "src", quiet=True)
+    runs.run(config, tmp_path / "src", quiet=True)
     before = (tmp_path / "src" / "checkpoint.msgpack").read_bytes()
-    for bad, message in ((["--num-envs", "4"], "cannot change num_envs"), (["--total-steps", "16"], "larger"),
-                         ([], "at least one"), (["--bonus-scale", "-1"], "bonus_scale")):
+    for bad, message in ((["--num-envs", "4"], "cannot change --num-envs"), (["--total-steps", "16"], "larger"),
+                         ([], "at least one"), (["--bonus-scale", "-1"], "--bonus-scale"),
+                         (["--out", "x"], "unrecognized arguments: --out")):
         with pytest.raises(SystemExit):
             fork.main([str(tmp_path / "src"), str(tmp_path / "bad"), *bad])
         assert message in capsys.readouterr().err and not (tmp_path / "bad").exists()
@@ -339,13 +379,13 @@ def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, caps
     assert record["env_steps"] == 16 and record["changed"]["bonus_scale"] == [0.01, 0.5]
     # only the bonus's value head and its Adam moments are new
     assert record["new_leaves"] and all("IntrinsicValue" in p for p in record["new_leaves"])
-    new = cli.load_config(tmp_path / "dst")
+    new = runs.load_config(tmp_path / "dst")
     assert (new.bonus_episodic, new.bonus_scale, new.total_steps) == (False, 0.5, 32)
-    src = cli.load_checkpoint(tmp_path / "src")["runner"]
-    dst = cli.load_checkpoint(tmp_path / "dst")["runner"]
+    src = runs.load_checkpoint(tmp_path / "src")["runner"]
+    dst = runs.load_checkpoint(tmp_path / "dst")["runner"]
     np.testing.assert_array_equal(dst["params"]["policy"]["params"]["Dense_1"]["kernel"],
                                   src["params"]["policy"]["params"]["Dense_1"]["kernel"])
     chex.assert_trees_all_equal(dst["novelty"], src["novelty"])
-    cli.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 16
+    runs.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 16
     rows = list(csv.DictReader(open(tmp_path / "dst" / "metrics.csv")))
     assert [int(r["env_steps"]) for r in rows] == [8, 16, 24, 32]

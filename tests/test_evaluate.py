@@ -13,8 +13,7 @@ from PIL import Image
 
 pytest.importorskip("vizdoom")
 
-from simjax import evaluate  # noqa: E402
-from simjax import train as cli  # noqa: E402
+from simjax import evaluate, runs  # noqa: E402
 from simjax.agents import TrainConfig  # noqa: E402
 from simjax.envs import make  # noqa: E402
 from simjax.envs import vizdoom_ref as vr  # noqa: E402
@@ -27,7 +26,7 @@ FIELDS = {"run", "env", "backend", "seed_index", "seed", "env_steps", "eval_seed
 def run_dir(tmp_path_factory):
     """A maze-dense run of two seeds trained for one 8-step update: a checkpoint to evaluate."""
     config = TrainConfig(env="maze-dense", num_envs=2, rollout_len=4, total_steps=8, log_every=8, num_seeds=2)
-    return cli.run(config, tmp_path_factory.mktemp("eval") / "run", quiet=True)
+    return runs.run(config, tmp_path_factory.mktemp("eval") / "run", quiet=True)
 
 
 def _check(record, backend, max_steps, episodes):
@@ -76,14 +75,14 @@ def test_vizdoom_backend_and_video(run_dir, tmp_path):
     (["--backend", "simjax", "--seed-index", "2"], "the run has 2 seed(s)"),
 ])
 def test_bad_flags_are_refused_before_compiling(run_dir, bad, message, capsys, monkeypatch):
-    monkeypatch.setattr(evaluate, "load_policy", lambda *a: pytest.fail("must not load or compile"))
+    monkeypatch.setattr(evaluate, "restore", lambda *a: pytest.fail("must not load or compile"))
     with pytest.raises(SystemExit):
         evaluate.main([str(run_dir), *bad])
     assert message in capsys.readouterr().err
 
 
 def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(evaluate, "load_policy", lambda *a: pytest.fail("must not load or compile"))
+    monkeypatch.setattr(evaluate, "restore", lambda *a: pytest.fail("must not load or compile"))
     with pytest.raises(SystemExit):
         evaluate.main([str(tmp_path / "nowhere"), "--backend", "simjax"])
     assert "no such run folder" in capsys.readouterr().err
@@ -96,7 +95,7 @@ def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path,
     assert "has no checkpoint.msgpack" in err and "not kept in git" in err and "--resume" in err
     tiny = tmp_path / "tiny"
     tiny.mkdir()
-    cli.write_config(tiny, TrainConfig(env="maze-tiny"))
+    runs.write_config(tiny, TrainConfig(env="maze-tiny"))
     (tiny / "checkpoint.msgpack").write_bytes(b"")
     with pytest.raises(SystemExit):
         evaluate.main([str(tiny), "--backend", "vizdoom"])

@@ -31,8 +31,6 @@ def test_adapter_shapes_dtypes_and_determinism(name, shape, actions):
     assert not np.array_equal(np.asarray(other.obs), np.asarray(s.obs))
 
 
-
-
 def test_adapter_auto_resets_and_marks_truncation_and_termination():
     # a 5-step time limit: alternating pushes keep the pole up that long, so every end is a truncation
     env = GymnaxEnv("CartPole-v1", max_steps_in_episode=5)
@@ -61,15 +59,17 @@ def test_unknown_or_continuous_gymnax_envs_are_clear_errors():
 
 
 def test_novelty_models_refuse_observations_they_cannot_read(capsys):
-    with pytest.raises(ValueError, match=r"reads image observations .* gives shape \(4,\)"):
-        TrainConfig(env="gymnax:CartPole-v1", algo="sim")
+    """Checked where the env is built (the learner), which the command line does before
+    anything is written or compiled."""
+    with pytest.raises(ValueError, match=r"--algo sim reads image observations .* gives shape \(4,\)"):
+        make_trainer(TrainConfig(env="gymnax:CartPole-v1", algo="sim"))
     with pytest.raises(ValueError, match="RND target needs frames of at least 36x36"):
-        TrainConfig(env="gymnax:Breakout-MinAtar", algo="rnd")
+        make_trainer(TrainConfig(env="gymnax:Breakout-MinAtar", algo="rnd"))
     with pytest.raises(SystemExit):
         cli.parse_config(["--env", "gymnax:Breakout-MinAtar", "--algo", "sim"])
     assert "--sim-target embed" in capsys.readouterr().err
-    TrainConfig(env="gymnax:Breakout-MinAtar", algo="sim", sim_target="embed")  # these fit
-    TrainConfig(env="gymnax:Breakout-MinAtar", algo="icm")
+    make_trainer(TrainConfig(env="gymnax:Breakout-MinAtar", algo="sim", sim_target="embed"))  # these fit
+    make_trainer(TrainConfig(env="gymnax:Breakout-MinAtar", algo="icm"))
 
 
 @pytest.mark.parametrize("algo,extra", [("icm", {}), ("sim", {"sim_target": "embed", "obs_len": 3, "act_len": 2})])

@@ -7,6 +7,7 @@ from simjax.agents.a2c import (
     make_train,
     make_trainer,
     n_step_returns,
+    sampling_policy,
     summarize,
     total_reward,
 )
@@ -14,5 +15,5 @@ from simjax.agents.config import ALGOS, TrainConfig
 
 __all__ = [
     "ALGOS", "RunnerState", "TrainConfig", "Trainer", "Transition", "make_train",
-    "make_trainer", "n_step_returns", "summarize", "total_reward",
+    "make_trainer", "n_step_returns", "sampling_policy", "summarize", "total_reward",
 ]

@@ -43,11 +43,12 @@ import optax
 
 from simjax.agents.config import TrainConfig
 from simjax.envs import make
+from simjax.envs.episodes import rollout, starts_episode
 from simjax.networks import ActorCritic
 from simjax.novelty import METRICS as NOVELTY_METRICS
+from simjax.novelty import Novelty, make_novelty
 
 ADAM_EPS = 1e-5
-from simjax.novelty import Novelty, make_novelty
 
 
 class Transition(NamedTuple):
@@ -84,13 +85,16 @@ def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) 
     return task_scale * extrinsic + bonus
 
 
-def starts_episode(env_state) -> jnp.ndarray:
-    """(N,) bool: the frame in ``env_state`` is an episode's first, so the LSTM carry resets.
+def sampling_policy(network: ActorCritic, params):
+    """The policy as it acts in training, for ``simjax.envs.episodes.rollout``: ``(carry,
+    state, key) -> (actions, carry)``, one step of the network on the batch's frames (its LSTM
+    memory reset where a frame starts an episode) and an action sampled from its distribution."""
 
-    The auto-resetting env marks the step that ended an episode with ``done``, and returns the
-    next episode's first frame with it. (After ``reset`` done is 0, but the carry is zero then.)
-    """
-    return env_state.done > 0
+    def act(carry, state, key):
+        carry, logits, _ = network.apply(params, carry, state.obs[None], starts_episode(state)[None])
+        return jax.random.categorical(key, logits[0]).astype(jnp.int32), carry
+
+    return act
 
 
 def n_step_returns(rewards, dones, truncations, values, gamma: float):
@@ -147,7 +151,8 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
     """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
     env = make(config.env) if env is None else env
     network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
-    novelty = make_novelty(config, env.action_size, env.observation_size) if novelty is None else novelty
+    if novelty is None:  # the model must read the env's observations: checked here, before compiling
+        novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
     eta = config.policy_weight
 
     def group(scale):
@@ -169,26 +174,21 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         params = {"policy": policy, "novelty": novelty_params}
         return RunnerState(params, tx.init(params), env_state, carry, novelty_state, k_run)
 
-    def rollout(runner: RunnerState):
-        def env_step(state, key):
-            env_state, carry = state
-            reset = starts_episode(env_state)
-            carry, logits, _ = network.apply(runner.params["policy"], carry, env_state.obs[None], reset[None])
-            action = jax.random.categorical(key, logits[0]).astype(jnp.int32)
-            next_state = jax.vmap(env.step)(env_state, action)
-            tr = Transition(
-                obs=env_state.obs,
-                reset=reset,
-                action=action,
-                reward=next_state.reward,
-                done=next_state.done,
-                truncation=next_state.info["truncation"],
-                metrics=next_state.metrics,
-            )
-            return (next_state, carry), tr
+    def record(state, action, next_state) -> Transition:
+        return Transition(
+            obs=state.obs,
+            reset=starts_episode(state),
+            action=action,
+            reward=next_state.reward,
+            done=next_state.done,
+            truncation=next_state.info["truncation"],
+            metrics=next_state.metrics,
+        )
 
+    def collect(runner: RunnerState):
         key, sub = jax.random.split(runner.key)
-        (env_state, carry), traj = jax.lax.scan(env_step, (runner.env_state, runner.carry), jax.random.split(sub, T))
+        act = sampling_policy(network, runner.params["policy"])
+        env_state, carry, traj = rollout(env, act, runner.env_state, runner.carry, jax.random.split(sub, T), record)
         return env_state, carry, key, traj
 
     def loss_fn(params, runner: RunnerState, traj: Transition, last_obs, last_reset):
@@ -199,7 +199,7 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         return eta * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
 
     def update(runner: RunnerState, _):
-        env_state, carry, key, traj = rollout(runner)
+        env_state, carry, key, traj = collect(runner)
         chex.assert_shape(traj.obs, (T, N) + tuple(env.observation_size))
         grads, (info, novelty_state) = jax.grad(loss_fn, has_aux=True)(
             runner.params, runner, traj, env_state.obs, starts_episode(env_state)

@@ -14,13 +14,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
-ALGOS = ("a2c", "sim", "rnd", "icm")
+from simjax.envs import check_name
+from simjax.novelty.settings import MODELS, NoveltySettings, flag
+
+ALGOS = ("a2c",) + MODELS
 # paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method
 PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01}
-SIM_COMBINE = ("full", "itr", "concat")
-SIM_SEQUENCE = ("lstm", "ff")
-SIM_TARGET = ("rnd", "embed")
-MAX_WINDOW = 64  # H and L above this are almost surely typos (memory is H + L - 2 frames per env)
 
 
 def _f(default, help):
@@ -62,51 +61,48 @@ class TrainConfig:
                               "reaching the goal does not forfeit the bonus still to come")
 
     def __post_init__(self):
-        from simjax.envs import check_name  # envs know nothing of agents; the reverse is fine
-
+        """Checks the values alone, cheaply (a config is made whenever one is loaded or
+        replaced); what needs the task's shapes is checked where its env is built
+        (``make_trainer``). Errors name the command-line flag."""
         check_name(self.env)
         if self.algo not in ALGOS:
             raise ValueError(f"unknown algo {self.algo!r}; known algos: {', '.join(ALGOS)}")
         if self.bonus_scale is None:
             object.__setattr__(self, "bonus_scale", PAPER_BONUS_SCALE[self.algo])
-        for name, allowed in (("sim_combine", SIM_COMBINE), ("sim_sequence", SIM_SEQUENCE), ("sim_target", SIM_TARGET)):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"{name} must be one of {', '.join(allowed)}; got {getattr(self, name)!r}")
-        if not 2 <= self.obs_len <= MAX_WINDOW:
-            raise ValueError(f"obs_len (H) must lie in [2, {MAX_WINDOW}], got {self.obs_len}")
-        if not 1 <= self.act_len <= MAX_WINDOW:
-            raise ValueError(f"act_len (L) must lie in [1, {MAX_WINDOW}], got {self.act_len}")
-        if not 0.0 <= self.forward_weight <= 1.0:
-            raise ValueError(f"forward_weight (lambda) must lie in [0, 1], got {self.forward_weight}")
-        if not (self.rl_weight > 0 and math.isfinite(self.rl_weight)):
-            raise ValueError(f"rl_weight (eta) must be a finite number > 0, got {self.rl_weight}")
-        positive_ints = ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every")
-        for name in positive_ints:
+        for name in ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every"):
             if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)}")
+                raise ValueError(f"{flag(name)} must be a positive integer, got {getattr(self, name)}")
         for name in ("learning_rate", "max_grad_norm"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("value_coef", "entropy_coef", "task_scale", "bonus_scale"):
+                raise ValueError(f"{flag(name)} must be > 0, got {getattr(self, name)}")
+        for name in ("value_coef", "entropy_coef", "task_scale"):
             value = getattr(self, name)
             if not (value >= 0 and math.isfinite(value)):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value}")
+                raise ValueError(f"{flag(name)} must be a finite number >= 0, got {value}")
+        if not (self.rl_weight > 0 and math.isfinite(self.rl_weight)):
+            raise ValueError(f"{flag('rl_weight')} (eta) must be a finite number > 0, got {self.rl_weight}")
         if not 0.0 <= self.gamma <= 1.0:
-            raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+            raise ValueError(f"{flag('gamma')} must lie in [0, 1], got {self.gamma}")
         if self.seed < 0:
-            raise ValueError(f"seed must be >= 0, got {self.seed}")
+            raise ValueError(f"{flag('seed')} must be >= 0, got {self.seed}")
         if self.total_steps < self.steps_per_update:
             raise ValueError(
-                f"total_steps ({self.total_steps}) is less than one update "
-                f"(num_envs * rollout_len = {self.steps_per_update})"
+                f"{flag('total_steps')} ({self.total_steps}) is less than one update "
+                f"(--num-envs * --rollout-len = {self.steps_per_update})"
             )
         if self.algo == "a2c" and not self.bonus_episodic:
-            raise ValueError("bonus_episodic=False gives the bonus its own return; a2c has no bonus")
-        if self.algo != "a2c":  # can the novelty model read this task's observations?
-            from simjax.envs import make
-            from simjax.novelty import check_observation
+            raise ValueError("--bonus-episodic false gives the bonus its own return; --algo a2c has no bonus")
+        _ = self.novelty  # building the novelty settings checks their values
 
-            check_observation(self, make(self.env).observation_size)
+    @property
+    def novelty(self) -> NoveltySettings:
+        """The settings the novelty model and its bonus are built from."""
+        return NoveltySettings(
+            algo=self.algo, bonus_scale=self.bonus_scale, gamma=self.gamma, obs_norm=self.obs_norm,
+            bonus_norm=self.bonus_norm, forward_weight=self.forward_weight, obs_len=self.obs_len,
+            act_len=self.act_len, sim_combine=self.sim_combine, sim_sequence=self.sim_sequence,
+            sim_target=self.sim_target, sim_inverse=self.sim_inverse,
+        )
 
     @property
     def policy_weight(self) -> float:

@@ -54,6 +54,7 @@ class SIM:
 
     target "rnd": f*(o_t) is the fixed RND target; "embed" (SIM-no-RND): stop_gradient f_e(o_t).
     sequence "lstm" / "ff" (SIM-no-Seq); combine "full" / "itr" / "concat"; inverse on/off.
+    The settings are checked where they are given (``NoveltySettings``), not here.
     """
 
     num_actions: int
@@ -64,12 +65,6 @@ class SIM:
     target: str = "rnd"
     inverse: bool = True
     forward_weight: float = 0.2  # lambda
-
-    def __post_init__(self):
-        if self.obs_len < 2 or self.act_len < 1:
-            raise ValueError(f"SIM needs H >= 2 and L >= 1, got H={self.obs_len}, L={self.act_len}")
-        if self.target not in ("rnd", "embed"):
-            raise ValueError(f"unknown SIM target {self.target!r}")
 
     @property
     def history(self) -> int:

@@ -10,11 +10,12 @@ import chex
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from simjax.networks.actor_critic import ResetLSTM
 from simjax.networks.layers import PatchConv, conv_stack
 
-SQRT2 = float(jnp.sqrt(2.0))
+SQRT2 = float(np.sqrt(np.float32(2.0)))  # float32's sqrt(2), in numpy: no computation on import
 
 
 def _flatten(x: jnp.ndarray) -> jnp.ndarray:

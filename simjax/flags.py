@@ -1,0 +1,40 @@
+"""The command-line flags of ``TrainConfig``, one per field, for the commands that take them
+(``simjax.train``, ``simjax.fork``).
+
+Their defaults are left to ``TrainConfig``: a parsed namespace holds exactly the flags that
+were given (``given_settings``), which is what a fork changes and what ``--resume`` refuses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+from simjax.agents import TrainConfig
+
+
+def parse_bool(text: str) -> bool:
+    lowered = text.strip().lower()
+    if lowered in ("1", "true", "yes", "on"):
+        return True
+    if lowered in ("0", "false", "no", "off"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
+
+
+_FIELD_TYPES = {"int": int, "float": float, "str": str, "bool": parse_bool, "float | None": float}
+_FIELDS = tuple(f.name for f in dataclasses.fields(TrainConfig))
+
+
+def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings") -> None:
+    """``--env``, ``--algo``, ... : one flag per TrainConfig field, its default in its help."""
+    group = parser.add_argument_group(title)
+    for field in dataclasses.fields(TrainConfig):
+        shown = "" if field.default is None else f" (default: {field.default})"
+        group.add_argument("--" + field.name.replace("_", "-"), type=_FIELD_TYPES[str(field.type)],
+                           default=argparse.SUPPRESS, help=field.metadata.get("help", "") + shown)
+
+
+def given_settings(args: argparse.Namespace) -> dict:
+    """The TrainConfig fields given on the command line, by field name."""
+    return {name: getattr(args, name) for name in _FIELDS if hasattr(args, name)}

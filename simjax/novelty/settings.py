@@ -1,0 +1,82 @@
+"""``NoveltySettings``: everything a novelty model and its bonus are built from, typed and
+checked in one place. ``TrainConfig.novelty`` builds it from a run's config; its field names are
+the config's, so an error names the command-line flag (``obs_len`` is ``--obs-len``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+MODELS = ("sim", "rnd", "icm")  # and "a2c": no model, no bonus
+SIM_COMBINE = ("full", "itr", "concat")
+SIM_SEQUENCE = ("lstm", "ff")
+SIM_TARGET = ("rnd", "embed")
+MAX_WINDOW = 64  # H and L above this are almost surely typos (memory is H + L - 2 frames per env)
+# RND's target (8x8 s4, 4x4 s2, 3x3 s1, all VALID) leaves at least one pixel from 36x36 frames
+RND_TARGET_MIN_SIZE = 36
+
+
+def flag(name: str) -> str:
+    """The command-line flag of a config field: ``act_len`` -> ``--act-len``."""
+    return "--" + name.replace("_", "-")
+
+
+@dataclasses.dataclass(frozen=True)
+class NoveltySettings:
+    """The novelty model ``algo`` names (none for ``a2c``) and how its error becomes a bonus."""
+
+    algo: str = "a2c"
+    bonus_scale: float = 0.0  # beta: bonus = beta * error
+    gamma: float = 0.99  # discount of the bonus normaliser's running return
+    obs_norm: bool = True
+    bonus_norm: bool = False
+    forward_weight: float = 0.2  # lambda (sim, icm)
+    obs_len: int = 10  # SIM's H
+    act_len: int = 3  # SIM's L
+    sim_combine: str = "full"
+    sim_sequence: str = "lstm"
+    sim_target: str = "rnd"
+    sim_inverse: bool = True
+
+    def __post_init__(self):
+        if self.algo != "a2c" and self.algo not in MODELS:
+            raise ValueError(f"unknown novelty model {self.algo!r}; known: {', '.join(MODELS)}")
+        for name, allowed in (("sim_combine", SIM_COMBINE), ("sim_sequence", SIM_SEQUENCE),
+                              ("sim_target", SIM_TARGET)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{flag(name)} must be one of {', '.join(allowed)}; got {getattr(self, name)!r}")
+        if not 2 <= self.obs_len <= MAX_WINDOW:
+            raise ValueError(f"{flag('obs_len')} (H) must lie in [2, {MAX_WINDOW}], got {self.obs_len}")
+        if not 1 <= self.act_len <= MAX_WINDOW:
+            raise ValueError(f"{flag('act_len')} (L) must lie in [1, {MAX_WINDOW}], got {self.act_len}")
+        if not 0.0 <= self.forward_weight <= 1.0:
+            raise ValueError(f"{flag('forward_weight')} (lambda) must lie in [0, 1], got {self.forward_weight}")
+        if not (self.bonus_scale >= 0 and math.isfinite(self.bonus_scale)):
+            raise ValueError(f"{flag('bonus_scale')} must be a finite number >= 0, got {self.bonus_scale}")
+
+    @property
+    def reads_images(self) -> bool:
+        return self.algo != "a2c"
+
+    @property
+    def uses_rnd_target(self) -> bool:
+        return self.algo == "rnd" or (self.algo == "sim" and self.sim_target == "rnd")
+
+
+def check_observation(settings: NoveltySettings, obs_shape, task: str = "this task") -> None:
+    """A clear error if the model ``settings`` name cannot read observations of ``obs_shape``
+    (known only once the task's env is built)."""
+    if not settings.reads_images:
+        return
+    shape = tuple(obs_shape)
+    if len(shape) != 3:
+        raise ValueError(
+            f"--algo {settings.algo} reads image observations (height, width, channels); "
+            f"{task} gives shape {shape}. Use --algo a2c for vector observations."
+        )
+    if settings.uses_rnd_target and min(shape[:2]) < RND_TARGET_MIN_SIZE:
+        raise ValueError(
+            f"--algo {settings.algo}'s RND target needs frames of at least {RND_TARGET_MIN_SIZE}x"
+            f"{RND_TARGET_MIN_SIZE}; {task} gives {shape[0]}x{shape[1]}. "
+            "Use --algo sim with --sim-target embed, or --algo icm."
+        )

@@ -1,0 +1,25 @@
+"""Runs on disk: the run folder (``folder``: config, metrics, checkpoint, ``restore``),
+training into one (``training``), forking one (``fork``), the progress line (``progress``) and
+the guard against XLA:CPU stalls (``stall``). The command lines (``simjax.train``,
+``simjax.fork``, ``simjax.evaluate``) and the experiments sit on top of this package; it sits on
+top of the learner (``simjax.agents``)."""
+
+from simjax.runs.folder import (
+    METRIC_COLUMNS,
+    MetricsLog,
+    Restored,
+    atomic_write,
+    load_checkpoint,
+    load_config,
+    restore,
+    seed_keys,
+    write_checkpoint,
+    write_config,
+)
+from simjax.runs.fork import FORKABLE, fork
+from simjax.runs.training import run
+
+__all__ = [
+    "FORKABLE", "METRIC_COLUMNS", "MetricsLog", "Restored", "atomic_write", "fork", "load_checkpoint",
+    "load_config", "restore", "run", "seed_keys", "write_checkpoint", "write_config",
+]

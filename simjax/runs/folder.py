@@ -1,0 +1,208 @@
+"""A run folder on disk, written and read back.
+
+    config.json         every setting of the run (``TrainConfig``) and, from a training
+                        process, the package versions
+    metrics.csv         one row per seed per log interval, appended and flushed as training goes
+    checkpoint.msgpack  the runner state of every seed as of the last metrics row (rewritten,
+                        atomically, after each row, so a stopped or killed run keeps it)
+    curve.png           success ratio and mean episode length against agent steps
+    fork.json           where a fork (``simjax.runs.fork``) came from, and what it changed
+
+``restore(folder)`` reads a run back for whatever goes on from it: resuming, forking,
+evaluating, the experiments' diagnostics.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import functools
+import json
+import os
+from pathlib import Path
+
+from simjax.agents import TrainConfig, make_trainer
+
+METRIC_COLUMNS = (
+    "env_steps", "seed", "success_ratio", "mean_episode_length", "mean_extrinsic_return",
+    "episodes", "policy_loss", "value_loss", "entropy", "value_mean", "grad_norm",
+    "bonus_mean", "forward_loss", "inverse_loss", "steps_per_s", "wall_s",
+)
+_ONE_DECIMAL = ("steps_per_s", "wall_s")  # measured, not learnt: tenths are plenty
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename, so a run stopped
+    mid-write leaves the old file or the new one, never half of one."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+# -- config.json ----------------------------------------------------------------------------------
+
+
+def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = None) -> None:
+    """config.json: every setting (and, from a training process, the package versions)."""
+    record = {"config": dataclasses.asdict(config)} | ({"versions": versions} if versions else {})
+    atomic_write(Path(run_dir) / "config.json", json.dumps(record, indent=2).encode())
+
+
+def load_config(run_dir: Path) -> TrainConfig:
+    path = Path(run_dir) / "config.json"
+    if not path.exists():
+        raise FileNotFoundError(f"{run_dir} is not a run folder (no config.json)")
+    return TrainConfig(**json.loads(path.read_text())["config"])
+
+
+# -- metrics.csv (and TensorBoard) ------------------------------------------------------------------
+
+
+def rows_up_to(path: Path, steps: int) -> list[list[str]]:
+    """metrics.csv rows (header first) up to ``steps``: a row written after the last checkpoint
+    (the process died between the two writes) is dropped, its update will be rerun."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows or tuple(rows[0]) != METRIC_COLUMNS:
+        raise ValueError(f"{path} does not have the columns this version writes")
+    return [rows[0]] + [r for r in rows[1:] if int(r[0]) <= steps]
+
+
+class MetricsLog:
+    """The one writer of a run's metrics: ``append`` writes a row to metrics.csv, ``flush``
+    makes sure it is on disk (so a killed run keeps it). ``rows`` (header first) are what
+    metrics.csv starts with: a resumed run's earlier rows."""
+
+    def __init__(self, run_dir: Path, rows: list[list[str]] | None = None):
+        self.run_dir = Path(run_dir)
+        rows = rows or [list(METRIC_COLUMNS)]
+        atomic_write(self.run_dir / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
+        self._file = open(self.run_dir / "metrics.csv", "a", newline="")
+        self._csv = csv.writer(self._file)
+
+    def append(self, env_steps: int, seed: int, values: dict) -> None:
+        """One row: ``values`` holds every column after ``env_steps`` and ``seed``."""
+        text = [f"{values[c]:.1f}" if c in _ONE_DECIMAL else f"{values[c]:.6g}" for c in METRIC_COLUMNS[2:]]
+        self._csv.writerow([env_steps, seed] + text)
+
+    def flush(self) -> None:
+        """Everything appended so far is on disk."""
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        self._file.close()
+
+
+# -- checkpoint.msgpack -----------------------------------------------------------------------------
+
+
+def seed_keys(config: TrainConfig):
+    """(num_seeds, 2) the PRNG keys a run's seeds start from: seed, seed + 1, ..."""
+    import jax
+
+    return jax.numpy.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
+
+
+def runner_template(trainer, config: TrainConfig):
+    """The shapes and types of a run's runner state (every seed), without computing it."""
+    import jax
+
+    return jax.eval_shape(jax.vmap(trainer.init), seed_keys(config))
+
+
+def write_checkpoint(run_dir: Path, runner, env_steps: int, seeds: list[int]) -> None:
+    """checkpoint.msgpack: ``runner`` (a RunnerState of every seed, or its state dict) at
+    ``env_steps`` agent steps per seed."""
+    import jax
+    from flax import serialization
+
+    state = {"runner": serialization.to_state_dict(jax.device_get(runner)), "env_steps": env_steps,
+             "seeds": list(seeds)}
+    atomic_write(Path(run_dir) / "checkpoint.msgpack", serialization.msgpack_serialize(state))
+
+
+def load_checkpoint(run_dir: Path, template=None) -> dict:
+    """The checkpoint as saved: {"runner": RunnerState of every seed (leading axis: seed),
+    "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types."""
+    from flax import serialization
+
+    ckpt = serialization.msgpack_restore((Path(run_dir) / "checkpoint.msgpack").read_bytes())
+    if template is not None:
+        ckpt["runner"] = serialization.from_state_dict(template, ckpt["runner"])
+    return ckpt
+
+
+def checkpoint_steps(run_dir: Path) -> int:
+    """Agent steps per seed at the folder's checkpoint; -1 if it has none that reads."""
+    try:
+        return int(load_checkpoint(run_dir)["env_steps"])
+    except (FileNotFoundError, KeyError, ValueError):
+        return -1
+
+
+# -- a run read back ----------------------------------------------------------------------------------
+
+
+class Restored:
+    """A run folder read back: its ``config``, the checkpoint's ``env_steps`` and ``seeds``, and,
+    built when first asked for, its task's ``env`` and the learner (``trainer``, ``network``).
+
+    ``policy()`` rebuilds only the policy's parameters, so checkpoints whose env or novelty
+    state has since changed shape still give their policy; ``runner()`` rebuilds everything
+    (the novelty model and its memory too). ``state`` is the runner as saved (a state dict)."""
+
+    def __init__(self, folder: Path, config: TrainConfig, checkpoint: dict, env=None):
+        self.folder, self.config = Path(folder), config
+        self.state = checkpoint["runner"]
+        self.env_steps, self.seeds = int(checkpoint["env_steps"]), [int(s) for s in checkpoint["seeds"]]
+        if env is not None:
+            self.env = env
+
+    @functools.cached_property
+    def env(self):
+        from simjax.envs import make
+
+        return make(self.config.env)
+
+    @functools.cached_property
+    def trainer(self):
+        return make_trainer(self.config, self.env)
+
+    @property
+    def network(self):
+        return self.trainer.network
+
+    @functools.cached_property
+    def _template(self):
+        return runner_template(self.trainer, self.config)
+
+    def policy(self, seed_index: int | None = None):
+        """The policy's parameters: every seed's (leading axis: seed), or seed ``seed_index``'s."""
+        from flax import serialization
+
+        params = serialization.from_state_dict(self._template.params["policy"], self.state["params"]["policy"])
+        return params if seed_index is None else _pick(params, seed_index)
+
+    def runner(self, seed_index: int | None = None):
+        """The whole RunnerState: every seed's (leading axis: seed), or seed ``seed_index``'s."""
+        from flax import serialization
+
+        runner = serialization.from_state_dict(self._template, self.state)
+        return runner if seed_index is None else _pick(runner, seed_index)
+
+
+def _pick(tree, index: int):
+    import jax
+
+    return jax.tree.map(lambda x: x[index], tree)
+
+
+def restore(folder: Path, env=None) -> Restored:
+    """Read the run in ``folder`` (config.json and checkpoint.msgpack); ``env`` replaces the
+    env its task would build. A FileNotFoundError says which file is missing."""
+    folder = Path(folder)
+    config = load_config(folder)
+    if not (folder / "checkpoint.msgpack").exists():
+        raise FileNotFoundError(f"{folder} has no checkpoint.msgpack")
+    return Restored(folder, config, load_checkpoint(folder), env)
