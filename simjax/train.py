@@ -29,6 +29,8 @@ def build_parser() -> argparse.ArgumentParser:
     flags.add_config_flags(parser)
     parser.add_argument("--out", type=Path, default=None, help="run folder (default: runs/ENV-ALGO-TIME)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--tensorboard", action="store_true",
+                        help="also write the metrics as TensorBoard event files in OUT/tensorboard (tensorboardX)")
     parser.add_argument("--resume", type=Path, default=None,
                         help="continue the run in this folder from its checkpoint (no run settings, no --out)")
     parser.add_argument("--no-supervise", action="store_true",
@@ -46,6 +48,10 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
     parser = build_parser()
     args = parser.parse_args(argv)
     given = flags.given_settings(args)
+    if args.tensorboard:
+        missing = folder.tensorboard_available()
+        if missing:
+            parser.error(missing)
     if args.resume is not None:
         if given or args.out is not None:
             parser.error("--resume continues a run with its own config.json; give no run settings and no --out")
@@ -74,7 +80,7 @@ def worker_command(out: Path, args: argparse.Namespace):
     """The command of a training process that resumes ``out``, its first call allowed ``limit`` s."""
     def command(limit: float) -> list[str]:
         return ([sys.executable, "-m", "simjax.train", "--resume", str(out), "--worker", "--stall-timeout", str(limit)]
-                + ["--quiet"] * args.quiet)
+                + ["--quiet"] * args.quiet + ["--tensorboard"] * args.tensorboard)
 
     return command
 
@@ -84,7 +90,7 @@ def main(argv=None) -> int:
     config, out, args = parse_config(argv)
     if args.worker or args.no_supervise:
         run(config, out, args.quiet, resume=args.resume is not None,
-            stall_limit=args.stall_timeout if args.worker else None)
+            stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard)
         print(f"run folder: {out}")
         return 0
     if args.resume is None:  # write config.json here, so the worker resumes what was asked

@@ -1,4 +1,8 @@
-"""Run folders: read back with ``restore``."""
+"""Run folders: read back with ``restore``, and the TensorBoard copy of metrics.csv."""
+
+import csv
+import glob
+import struct
 
 import chex
 import jax
@@ -6,6 +10,7 @@ import numpy as np
 import pytest
 
 from simjax import runs
+from simjax import train as cli
 from simjax.agents import TrainConfig
 
 
@@ -31,3 +36,45 @@ def test_restore_reads_a_run_back(tmp_path):
         runs.restore(tmp_path / "run")
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         runs.restore(tmp_path)
+
+
+def read_events(folder) -> dict:
+    """{(tag, step): value} of the scalars in a folder's TensorBoard event files (TFRecords:
+    length, its CRC, an Event protocol buffer, its CRC)."""
+    from tensorboardX.proto import event_pb2
+
+    scalars = {}
+    for path in glob.glob(str(folder / "events.out.tfevents.*")):
+        data, i = open(path, "rb").read(), 0
+        while i < len(data):
+            (n,) = struct.unpack("<Q", data[i:i + 8])
+            event = event_pb2.Event.FromString(data[i + 12:i + 12 + n])
+            i += 12 + n + 4
+            for value in event.summary.value:
+                scalars[(value.tag, event.step)] = value.simple_value
+    return scalars
+
+
+def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
+    pytest.importorskip("tensorboardX")
+    out = tmp_path / "run"
+    assert cli.main(["--env", "maze-tiny", "--num-envs", "4", "--rollout-len", "5", "--total-steps", "60",
+                     "--log-every", "20", "--num-seeds", "2", "--algo", "sim", "--obs-len", "2", "--act-len", "1",
+                     "--out", str(out), "--no-supervise", "--quiet", "--tensorboard"]) == 0
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert len(rows) == 6
+    checked = 0
+    for seed in (0, 1):
+        events = read_events(out / "tensorboard" / f"seed{seed}")
+        mine = [r for r in rows if int(r["seed"]) == seed]
+        for row in mine:
+            step = int(row["env_steps"])
+            for column in runs.METRIC_COLUMNS[2:]:
+                value = float(row[column])
+                if np.isfinite(value):
+                    assert events[(column, step)] == np.float32(value), (seed, step, column)
+                    checked += 1
+                else:  # no point where the CSV says nan (no episode ended in that row)
+                    assert (column, step) not in events
+        assert len(events) == sum(np.isfinite(float(r[c])) for r in mine for c in runs.METRIC_COLUMNS[2:])
+    assert checked > 50

@@ -7,6 +7,7 @@
                         atomically, after each row, so a stopped or killed run keeps it)
     curve.png           success ratio and mean episode length against agent steps
     fork.json           where a fork (``simjax.runs.fork``) came from, and what it changed
+    tensorboard/seedK/  with ``--tensorboard``: metrics.csv's values as TensorBoard scalars
 
 ``restore(folder)`` reads a run back for whatever goes on from it: resuming, forking,
 evaluating, the experiments' diagnostics.
@@ -18,6 +19,7 @@ import csv
 import dataclasses
 import functools
 import json
+import math
 import os
 from pathlib import Path
 
@@ -69,29 +71,62 @@ def rows_up_to(path: Path, steps: int) -> list[list[str]]:
 
 
 class MetricsLog:
-    """The one writer of a run's metrics: ``append`` writes a row to metrics.csv, ``flush``
-    makes sure it is on disk (so a killed run keeps it). ``rows`` (header first) are what
-    metrics.csv starts with: a resumed run's earlier rows."""
+    """The one writer of a run's metrics: ``append`` writes a row to metrics.csv (flushed and
+    synced, so a killed run keeps it) and, with ``tensorboard``, the same values, as written
+    to the CSV, as TensorBoard scalars in ``tensorboard/seed<K>/`` at step ``env_steps``.
 
-    def __init__(self, run_dir: Path, rows: list[list[str]] | None = None):
+    ``rows`` (header first) are what metrics.csv starts with: a resumed run's earlier rows.
+    TensorBoard gets no point where a value is not finite (e.g. the success ratio of a row
+    in which no episode ended): tensorboardX would print a warning for each."""
+
+    def __init__(self, run_dir: Path, rows: list[list[str]] | None = None, tensorboard: bool = False):
         self.run_dir = Path(run_dir)
         rows = rows or [list(METRIC_COLUMNS)]
         atomic_write(self.run_dir / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
         self._file = open(self.run_dir / "metrics.csv", "a", newline="")
         self._csv = csv.writer(self._file)
+        self._boards = {} if tensorboard else None
+        # a resumed run drops its rows after the checkpoint; TensorBoard hides them too
+        self._purge_step = int(rows[-1][0]) + 1 if len(rows) > 1 else None
 
     def append(self, env_steps: int, seed: int, values: dict) -> None:
         """One row: ``values`` holds every column after ``env_steps`` and ``seed``."""
         text = [f"{values[c]:.1f}" if c in _ONE_DECIMAL else f"{values[c]:.6g}" for c in METRIC_COLUMNS[2:]]
         self._csv.writerow([env_steps, seed] + text)
+        if self._boards is not None:
+            board = self._board(seed)
+            for column, value in zip(METRIC_COLUMNS[2:], text):
+                if math.isfinite(float(value)):
+                    board.add_scalar(column, float(value), env_steps)
 
     def flush(self) -> None:
         """Everything appended so far is on disk."""
         self._file.flush()
         os.fsync(self._file.fileno())
+        for board in (self._boards or {}).values():
+            board.flush()
 
     def close(self) -> None:
         self._file.close()
+        for board in (self._boards or {}).values():
+            board.close()
+
+    def _board(self, seed: int):
+        if seed not in self._boards:
+            from tensorboardX import SummaryWriter
+
+            self._boards[seed] = SummaryWriter(str(self.run_dir / "tensorboard" / f"seed{seed}"),
+                                               purge_step=self._purge_step)
+        return self._boards[seed]
+
+
+def tensorboard_available() -> str | None:
+    """None if ``--tensorboard`` can work here, else why not."""
+    try:
+        import tensorboardX  # noqa: F401
+    except ImportError:
+        return "--tensorboard needs tensorboardX: pip install -e '.[tensorboard]'"
+    return None
 
 
 # -- checkpoint.msgpack -----------------------------------------------------------------------------

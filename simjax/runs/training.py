@@ -30,9 +30,10 @@ from simjax.runs.progress import Progress, mean_over_seeds
 from simjax.runs.stall import StallWatchdog
 
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
-        stall_limit: float | None = None) -> Path:
+        stall_limit: float | None = None, tensorboard: bool = False) -> Path:
     """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
-    (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``."""
+    (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``;
+    ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``)."""
     from simjax import plotting, runtime
     from simjax.agents import make_trainer, summarize
 
@@ -76,7 +77,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
         watchdog.end(record=False)
     compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
     start = time.perf_counter() - wall_before
-    log = MetricsLog(out, rows)
+    log = MetricsLog(out, rows, tensorboard)
     try:
         last = time.perf_counter()
         while done_steps < total:
