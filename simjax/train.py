@@ -18,7 +18,7 @@ from pathlib import Path
 
 from simjax import flags, runtime
 from simjax.agents import TrainConfig, make_trainer
-from simjax.runs import folder, run, stall
+from simjax.runs import Diverged, folder, run, stall
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -89,8 +89,12 @@ def main(argv=None) -> int:
     runtime.configure()
     config, out, args = parse_config(argv)
     if args.worker or args.no_supervise:
-        run(config, out, args.quiet, resume=args.resume is not None,
-            stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard)
+        try:
+            run(config, out, args.quiet, resume=args.resume is not None,
+                stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard)
+        except Diverged as err:
+            print(f"python -m simjax.train: error: {err}", file=sys.stderr)
+            return 1
         print(f"run folder: {out}")
         return 0
     if args.resume is None:  # write config.json here, so the worker resumes what was asked

@@ -13,7 +13,8 @@ from simjax.envs import check_name, make
 from simjax.envs.gymnax_adapter import GymnaxEnv
 
 
-@pytest.mark.parametrize("name,shape,actions", [("CartPole-v1", (4,), 2), ("Breakout-MinAtar", (10, 10, 4), 3)])
+@pytest.mark.parametrize("name,shape,actions", [("CartPole-v1", (4,), 2), ("Breakout-MinAtar", (10, 10, 4), 3),
+                                               ("Catch-bsuite", (10, 5, 1), 3)])
 def test_adapter_shapes_dtypes_and_determinism(name, shape, actions):
     env = make("gymnax:" + name)
     assert env.observation_size == shape and env.action_size == actions
@@ -29,6 +30,20 @@ def test_adapter_shapes_dtypes_and_determinism(name, shape, actions):
     chex.assert_trees_all_equal(s2, step(reset(keys), jnp.array([0, 1, 1, 0])))
     other = reset(jax.random.split(jax.random.PRNGKey(1), 4))
     assert not np.array_equal(np.asarray(other.obs), np.asarray(s.obs))
+
+
+def test_frames_without_a_channel_axis_are_one_channel_images():
+    """bsuite's Catch and DeepSea give (H, W) frames; the learner's networks read (H, W, C).
+    (FrozenLake's scalar cell index becomes a vector of one.)"""
+    assert make("gymnax:DeepSea-bsuite").observation_size == (8, 8, 1)
+    frozen = make("gymnax:FrozenLake-misc")
+    assert frozen.observation_size == (1,)
+    chex.assert_shape(frozen.step(frozen.reset(jax.random.PRNGKey(0)), jnp.int32(1)).obs, (1,))
+    config = TrainConfig(env="gymnax:Catch-bsuite", num_envs=4, rollout_len=5, total_steps=20, log_every=20)
+    trainer = make_trainer(config)
+    after, metrics = jax.jit(trainer.run_chunk)(jax.jit(trainer.init)(jax.random.PRNGKey(0)))
+    chex.assert_tree_all_finite((after.params, metrics))
+    assert "PatchConv_0" in after.params["policy"]["params"]["Encoder_0"]  # read as an image
 
 
 def test_adapter_auto_resets_and_marks_truncation_and_termination():
@@ -49,13 +64,21 @@ def test_adapter_auto_resets_and_marks_truncation_and_termination():
     assert states.metrics["episode_length"][t] == t + 1
 
 
-def test_unknown_or_continuous_gymnax_envs_are_clear_errors():
+def test_unknown_or_continuous_gymnax_envs_are_clear_errors(capsys, monkeypatch):
     with pytest.raises(ValueError, match="unknown gymnax environment 'Nope-v0'; gymnax knows: CartPole-v1"):
         check_name("gymnax:Nope-v0")
     with pytest.raises(ValueError, match="action space"):
         make("gymnax:Pendulum-v1")
     with pytest.raises(ValueError, match="or gymnax:NAME"):
         check_name("cartpole")
+    # on the command line: argparse's one-line refusal, before anything is written or compiled
+    monkeypatch.setattr(cli, "run", lambda *a, **k: pytest.fail("must not start a run"))
+    with pytest.raises(SystemExit) as err:
+        cli.main(["--env", "gymnax:Pendulum-v1", "--out", "/nonexistent/run"])
+    assert err.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines[-1].startswith("python -m simjax.train: error: gymnax:Pendulum-v1 has a Box action space")
+    assert not any("Traceback" in line for line in lines)
 
 
 def test_novelty_models_refuse_observations_they_cannot_read(capsys):

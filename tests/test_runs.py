@@ -1,4 +1,5 @@
-"""Run folders: read back with ``restore``, and the TensorBoard copy of metrics.csv."""
+"""Run folders: read back with ``restore``, the TensorBoard copy of metrics.csv, and a run that
+diverges."""
 
 import csv
 import glob
@@ -78,3 +79,19 @@ def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
                     assert (column, step) not in events
         assert len(events) == sum(np.isfinite(float(r[c])) for r in mine for c in runs.METRIC_COLUMNS[2:])
     assert checked > 50
+
+
+def test_a_diverging_run_stops_at_its_first_non_finite_row_and_keeps_the_last_finite_checkpoint(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = cli.main(["--env", "maze-tiny", "--total-steps", "1280", "--log-every", "640", "--learning-rate", "1e8",
+                     "--max-grad-norm", "1e9", "--out", str(out), "--no-supervise", "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "error: training diverged in the updates up to 1,280 agent steps" in err, err
+    assert "seed 0: policy_loss nan" in err and "grad_norm nan" in err and "policy parameters" in err
+    assert "up to 640 steps" in err and "Traceback" not in err
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert [int(r["env_steps"]) for r in rows] == [640]  # the NaN row is not written
+    ckpt = runs.load_checkpoint(out)
+    assert ckpt["env_steps"] == 640
+    chex.assert_tree_all_finite(ckpt["runner"]["params"])

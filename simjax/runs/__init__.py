@@ -17,9 +17,9 @@ from simjax.runs.folder import (
     write_config,
 )
 from simjax.runs.fork import FORKABLE, fork
-from simjax.runs.training import run
+from simjax.runs.training import Diverged, run
 
 __all__ = [
-    "FORKABLE", "METRIC_COLUMNS", "MetricsLog", "Restored", "atomic_write", "fork", "load_checkpoint",
+    "FORKABLE", "METRIC_COLUMNS", "Diverged", "MetricsLog", "Restored", "atomic_write", "fork", "load_checkpoint",
     "load_config", "restore", "run", "seed_keys", "write_checkpoint", "write_config",
 ]

@@ -3,7 +3,8 @@
 Each compiled call trains ``config.updates_per_log`` updates of every seed (``jax.vmap``); its
 metrics become one row per seed in metrics.csv, and the checkpoint is rewritten to match the
 last row on disk, so a run stopped by Ctrl-C, killed, or stalled (``simjax.runs.stall``) goes
-on from there bit for bit with ``resume``.
+on from there bit for bit with ``resume``. A run whose losses, gradient norm or parameters
+stop being finite ends at that row (``Diverged``), keeping the last finite checkpoint.
 """
 
 from __future__ import annotations
@@ -29,11 +30,37 @@ from simjax.runs.folder import (
 from simjax.runs.progress import Progress, mean_over_seeds
 from simjax.runs.stall import StallWatchdog
 
+# the learnt quantities of a row: none of them is NaN or infinite in a sound run (a row's
+# success ratio or episode length is NaN where no episode ended; that is no fault)
+FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm", "bonus_mean",
+                "forward_loss", "inverse_loss")
+
+
+class Diverged(RuntimeError):
+    """Training produced a non-finite loss, gradient norm or parameter; nothing of that update
+    was written."""
+
+
+def non_finite(metrics: dict, params, seeds: list[int]) -> list[str]:
+    """What in one chunk's ``metrics`` and the ``params`` after it (leading axis: seed) is NaN
+    or infinite, one line per seed that has any: 'seed S: term value, ..., GROUP parameters'."""
+    found = []
+    for i, seed in enumerate(seeds):
+        bad = [f"{k} {float(np.asarray(metrics[k])[i]):.6g}" for k in FINITE_TERMS
+               if k in metrics and not np.isfinite(np.asarray(metrics[k])[i])]
+        bad += [f"{group} parameters" for group, tree in params.items()
+                if not all(np.isfinite(np.asarray(leaf)[i]).all() for leaf in jax.tree.leaves(tree))]
+        if bad:
+            found.append(f"seed {seed}: {', '.join(bad)}")
+    return found
+
+
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         stall_limit: float | None = None, tensorboard: bool = False) -> Path:
     """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
     (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``;
-    ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``)."""
+    ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``).
+    Raises ``Diverged`` at the first row with a non-finite loss, gradient norm or parameter."""
     from simjax import plotting, runtime
     from simjax.agents import make_trainer, summarize
 
@@ -89,6 +116,12 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
                 watchdog.end()
             now = time.perf_counter()
             steps = done_steps + steps_per_chunk
+            bad = non_finite(metrics, jax.device_get(next_runner.params), seeds)
+            if bad:  # neither this row nor its runner is written: the checkpoint stays finite
+                raise Diverged(
+                    f"training diverged in the updates up to {steps:,} agent steps per seed: "
+                    f"{'; '.join(bad)}. {out} keeps its rows and checkpoint up to {done_steps:,} steps; "
+                    "a smaller --learning-rate or --max-grad-norm may help")
             rate = steps_per_chunk * config.num_seeds / (now - last)
             last = now
             for i, seed in enumerate(seeds):
