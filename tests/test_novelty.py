@@ -319,7 +319,8 @@ def test_no_model_means_no_bonus(frames):
 # ---------------------------------------------------------------- the maze's looks, as a target sees them
 
 def test_no_wall_look_is_a_louder_tv_for_the_rnd_target():
-    """Each of MyWayHome's nine looks, drawn on every wall of the map, spreads the RND target
+    """Each of the nine invented looks (raycaster.TEXTURE_LOOKS: MyWayHome without its Freedoom
+    textures), drawn on every wall of the map, spreads the RND target
     about as widely as the others (`experiments/look_loudness.py` calibrated them). A look
     that spread it several times wider would pay a prediction-error bonus several times
     higher at the same accuracy: the bright cyan look did (4.2x at these sizes, 6.2x at full)."""

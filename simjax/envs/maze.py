@@ -1,8 +1,9 @@
 """First-person maze navigation as a brax ``Env``: MyWayHome tasks (paper section 3.1, B.1).
 
 An agent step repeats one of 4 actions {turn left, turn right, forward, no-op} (or the first 3,
-``MazeTask.num_actions``) for 4 tics of Doom-like motion (``simjax.envs.motion``) and renders
-one 42x42 RGB frame (``raycaster``). Items give their reward on the first touch in an episode
+``MazeTask.num_actions``) for 4 tics of Doom's motion (``simjax.envs.motion``) and renders
+one 42x42 RGB frame: as ViZDoom draws it (``doom_render``) where the env has a ``DoomLook``,
+else with the invented looks of ``raycaster``. Items give their reward on the first touch in an episode
 and disappear; touching one that ``ends`` (the goal) ends the episode as a success
 (termination). Otherwise the episode is cut after ``max_steps`` agent steps (truncation,
 ``info['truncation'] == 1``, so a learner bootstraps there and not at a termination).
@@ -33,7 +34,7 @@ from simjax.envs.episodes import episode_metrics, given_actions, rollout
 class Items(NamedTuple):
     """Things to touch: ``pos`` (K, 2), ``look`` (K,) sprite look, ``reward`` (K,) given once per
     episode on the first touch (the item then disappears), ``ends`` (K,) whether touching it ends
-    the episode as a success (MyWayHome's vest, the melon)."""
+    the episode as a success (MyWayHome's armour, the melon)."""
 
     pos: jnp.ndarray
     look: jnp.ndarray
@@ -54,7 +55,7 @@ class Items(NamedTuple):
 
 
 def goal_item(xy, reward: float = 1.0):
-    """The item row of a navigation goal: the vest, ``reward`` on touch, the episode ends."""
+    """The item row of a navigation goal: the armour, ``reward`` on touch, the episode ends."""
     return (float(xy[0]), float(xy[1]), raycaster.GOAL, reward, True)
 
 
