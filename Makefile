@@ -13,7 +13,7 @@ OUT    ?=
 ARGS   ?=
 RESUME ?=
 
-.PHONY: train test bench clean-venv
+.PHONY: train test lint bench clean-venv
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,10 @@ endif
 
 test: $(STAMP)
 	$(PY) tools/run_tests.py
+
+# pyflakes, pycodestyle, import order, bugbear, pyupgrade: pyproject.toml's [tool.ruff]
+lint: $(STAMP)
+	$(PY) -m ruff check .
 
 bench: $(STAMP)
 	$(PY) experiments/bench.py --out BENCHMARKS.md

@@ -23,11 +23,10 @@ import argparse
 import datetime as dt
 import os
 import platform
+import statistics
 import sys
 import time
 from pathlib import Path
-
-import statistics
 
 import jax
 import jax.numpy as jnp
@@ -243,7 +242,8 @@ def main(argv=None) -> int:
     text = "\n".join(lines)
     print(text)
     if args.out:
-        header = "" if args.out.exists() else "# Benchmarks\n\nEach section is one run of the command it names, on this project's 2-core CPU machine.\n\n"
+        header = "" if args.out.exists() else (
+            "# Benchmarks\n\nEach section is one run of the command it names, on this project's 2-core CPU machine.\n\n")
         with open(args.out, "a") as f:
             f.write(header + text + "\n")
     return 0

@@ -39,7 +39,7 @@ def main():
     env = make("maze-dense")
     fig, ax = plt.subplots(figsize=(7, 6))
     draw_topdown(env.layout, ax=ax, title="MyWayHome (one colour per wall texture)")
-    for caption, x, y, deg in VIEWS:
+    for _caption, x, y, deg in VIEWS:
         ax.arrow(x, y, 30 * math.cos(math.radians(deg)), 30 * math.sin(math.radians(deg)), width=6, color="tab:red")
     for spot, (x, y) in mywayhome_map.SPAWN_SPOTS.items():
         ax.annotate(str(spot), (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")

@@ -50,7 +50,7 @@ def scaled_looks(factors) -> tuple:
     looks = list(raycaster.TEXTURE_LOOKS)
     for k, f in enumerate(factors):
         base, alt, pu, pv = looks[k]
-        move = lambda c: tuple(float(v) for v in np.clip(GREY + f * (np.asarray(c) - GREY), 0.0, 1.0))  # noqa: E731
+        move = lambda c, f=f: tuple(float(v) for v in np.clip(GREY + f * (np.asarray(c) - GREY), 0.0, 1.0))  # noqa: E731
         looks[k] = (move(base), move(alt), pu, pv)
     return tuple(looks)
 

@@ -133,7 +133,7 @@ def main(argv=None) -> int:
         f"visits s{s}  error s{s}" + (f"  spread s{s}" if has_target else "") for s in seeds)
     print(header)
     per_spot = []
-    for i, (error, mask) in enumerate(errors):
+    for error, mask in errors:
         e = error.reshape(args.steps, len(spots), args.walks)
         m = mask.reshape(args.steps, len(spots), args.walks)
         per_spot.append(np.asarray([e[:, j][m[:, j]].mean() for j in range(len(spots))]))

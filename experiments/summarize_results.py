@@ -21,7 +21,7 @@ from simjax.plotting import read_metrics
 def summarize_run(run_dir: Path, rows: int = 4) -> list[str]:
     lines = []
     for seed, cols in sorted(read_metrics(run_dir).items()):
-        def mean(name, part):
+        def mean(name, part, cols=cols):
             values = np.asarray(cols[name][:rows] if part == "first" else cols[name][-rows:])
             values = values[np.isfinite(values)]
             return float(values.mean()) if values.size else float("nan")

@@ -180,7 +180,7 @@ def vizdoom_episodes(game, start, choose, seeds, steps: int, record: int, say=No
     for i, seed in enumerate(seeds):
         game.new_episode(start=start, seed=int(seed))
         actor, views, xy = choose(i), [], []
-        for t in range(steps):
+        for t in range(steps):  # noqa: B007 (t, read after the loop, is the episode's last step)
             view = vizdoom_ref.resize42(game.frame())
             if i < record:
                 views.append(view)

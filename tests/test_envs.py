@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 from helpers import walk
 
-from simjax.envs import TASK_NAMES, make, mywayhome_layout, mywayhome_map, tiny_layout
-from simjax.envs import motion, raycaster
+from simjax.envs import TASK_NAMES, make, motion, mywayhome_layout, mywayhome_map, raycaster, tiny_layout
 from simjax.envs.maze import MazeEnv, MazeTask
 
 

@@ -2,8 +2,8 @@
 mapping against motion facts measured in ViZDoom (shared/reference/vizdoom_facts.md), and the
 area resize. Skipped where vizdoom is not installed."""
 
-from fractions import Fraction
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest

@@ -15,8 +15,6 @@ from simjax.envs import make, melon, motion, raycaster
 from simjax.envs.explore_goals import ExploreGoalsEnv, GridGraph, MazeGenerator, random_spanning_tree
 
 
-
-
 def _placed(env, x, y, degrees, key=0):
     """A fresh state of ``env`` with the agent moved to (x, y) facing ``degrees``."""
     state = env.reset(jax.random.PRNGKey(key))
@@ -142,12 +140,12 @@ def test_generated_mazes_are_connected_have_loops_and_match_their_walls():
     keys = jax.random.split(jax.random.PRNGKey(0), 300)
     is_open = np.asarray(jax.jit(jax.vmap(lambda k: gen.open_edges(jax.random.split(k)[0])))(keys))  # as generate
     layouts = jax.jit(jax.vmap(gen.generate))(keys[:20])
-    for i, edges in enumerate(is_open):
+    for edges in is_open:
         assert _components(gen.graph.num_cells, a, b, edges) == gen.graph.num_cells  # every goal reachable
     extra = is_open.sum(1) - (gen.graph.num_cells - 1)
     assert (extra >= 0).all() and extra.mean() > 2  # loops: ~10% of the non-tree walls are open
     for i in range(20):
-        layout = jax.tree.map(lambda x: x[i], layouts)
+        layout = jax.tree.map(lambda x, i=i: x[i], layouts)
         standing = layout.walls.standing()
         edges = len(a)
         np.testing.assert_array_equal(standing[:edges], ~is_open[i])  # open edge = no wall
@@ -245,8 +243,8 @@ def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
     expected = jax.vmap(jax.vmap(lambda k: gen.generate(k, env.layout)))(new_keys)
     for i in range(2):
         for j in range(3):
-            got = jax.tree.map(lambda x: x[i, j], out)
-            want = jax.tree.map(lambda x: x[i, j], expected if done[i, j] else old)
+            got = jax.tree.map(lambda x, i=i, j=j: x[i, j], out)
+            want = jax.tree.map(lambda x, i=i, j=j: x[i, j], expected if done[i, j] else old)
             chex.assert_trees_all_equal(got, want)
     chex.assert_trees_all_equal(fn(new_keys, jnp.zeros_like(done), old), old)
     # the generation stays behind a real conditional after both vmaps (not a select that always runs)

@@ -34,7 +34,8 @@ Adam's usual 1e-5, which would otherwise shrink the policy's steps several-fold.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import chex
 import jax

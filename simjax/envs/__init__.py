@@ -24,7 +24,7 @@ learner and the diagnostics share).
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from simjax.envs import mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy

@@ -15,7 +15,8 @@ the scan's input for the step (a PRNG key, or a pre-drawn action).
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import jax
 import jax.numpy as jnp

@@ -160,7 +160,7 @@ class MazeGenerator:
         return template._replace(walls=walls, boxes=boxes)
 
 
-def regenerate_where_done(generator: "MazeGenerator", template: Layout):
+def regenerate_where_done(generator: MazeGenerator, template: Layout):
     """``fn(keys (B, 2), done (B,), old (Layout, leading axis B)) -> Layout``: a new maze from
     ``keys[i]`` where ``done[i]``, else ``old[i]``; the mazes are generated only if any is done,
     also under any number of ``vmap`` levels (they are folded into B)."""

@@ -42,7 +42,7 @@ class Items(NamedTuple):
     ends: jnp.ndarray
 
     @staticmethod
-    def build(rows) -> "Items":
+    def build(rows) -> Items:
         """From rows ``(x, y, look, reward, ends)``."""
         rows = list(rows)
         if not rows:
@@ -70,7 +70,7 @@ class Layout(NamedTuple):
     block_origin: jnp.ndarray  # (2,) the lowest vertex coordinates: the blockmap's corner
 
     @staticmethod
-    def build(wall_rows, item_rows, spawn_xy) -> "Layout":
+    def build(wall_rows, item_rows, spawn_xy) -> Layout:
         """Wall rows run like Doom's linedefs, v1 -> v2 with the open side on the right."""
         walls = raycaster.Walls.from_rows(wall_rows)
         start, end = np.asarray(walls.start), np.asarray(walls.end)

@@ -17,16 +17,17 @@ Facts measured in ViZDoom 1.3.2 (shared/reference/vizdoom_facts.md):
 - The player is a square box of half-size 16 (Doom's "radius"). One agent step repeats its
   action for 4 tics.
 
-Collision is ZDoom's (P_XYMovement, P_TryMove, P_SlideMove), for axis-aligned one-sided walls:
-a tic's whole move is taken if the player's box at its end overlaps no wall (a move of at most
-~9 units can never carry a 32-unit box across one). Otherwise the player slides: three traces
-run from the box's leading corners along the move, and the nearest wall line they cross stops the box 1/32 of the move short of it; the rest of the move, with its
-component across that wall removed, becomes the new momentum and is tried from there (twice at
-most). Like Doom's, a short trace counts a line as crossed when its two ends lie on either side
-of the line's infinite extension, for every line in the 128-unit blockmap cells the trace
-touches: walking past the end of a wall can catch on its extension, which is where players part
-most at corners when this is left out. When no line is found, or the tries fail, the move is
-"stairstepped": along y alone, else along x alone, else not at all.
+Collision is ZDoom's (P_XYMovement, P_TryMove, P_SlideMove), for axis-aligned walls: a tic's
+whole move is taken if the player's box at its end overlaps no wall (a move of at most ~9 units
+can never carry a 32-unit box across one). Otherwise the player slides: three traces run from
+the box's leading corners along the move, and the nearest wall line they cross stops the box
+1/32 of the move short of it; the rest of the move, with its component across that wall
+removed, becomes the new momentum and is tried from there (twice at most). Like Doom's, a short
+trace counts a line as crossed when its two ends lie on either side of the line's infinite
+extension, for every line in the 128-unit blockmap cells the trace touches: walking past the end
+of a wall can catch on its extension, which is where players part most at corners when this is
+left out. When no line is found, or the tries fail, the move is "stairstepped": along y alone,
+else along x alone, else not at all.
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ class Pose(NamedTuple):
     turn_tics: jnp.ndarray  # () int32, consecutive tics with a turn button down (capped)
 
     @staticmethod
-    def at(xy, heading) -> "Pose":
+    def at(xy, heading) -> Pose:
         """A player standing still at ``xy`` facing ``heading`` (radians; rounded to Doom's
         nearest angle unit, 0.0055 deg). Works on traced values."""
         angle = angle_units(heading)
@@ -152,10 +153,10 @@ def _slide_hit(pos, move, boxes, line_dir, origin, radius):
     s0 = _side(starts[:, None, 0], starts[:, None, 1], boxes[None], line_dir[None])
     s1 = _side(ends[:, None, 0], ends[:, None, 1], boxes[None], line_dir[None])
     vertical = boxes[:, 0] == boxes[:, 2]
-    along = jnp.where(vertical, 0, 1)  # the axis the line is fixed on
     at = jnp.where(vertical, boxes[:, 0], boxes[:, 1])
     d = jnp.where(vertical[None], move[0], move[1])  # (1, S)
-    frac = (at[None] - jnp.take_along_axis(starts, jnp.broadcast_to(along[None, :], (3, along.shape[0])), 1)) / jnp.where(d == 0, 1e-9, d)
+    start_on_axis = jnp.where(vertical[None], starts[:, :1], starts[:, 1:])  # (3, S)
+    frac = (at[None] - start_on_axis) / jnp.where(d == 0, 1e-9, d)
     # (Doom skips a one-sided line seen from its back; every wall here blocks from both sides,
     # and a MyWayHome player is never behind one)
     hit = near & (s0 != s1) & (frac >= 0)

@@ -103,7 +103,7 @@ class Walls(NamedTuple):
     h_index: jnp.ndarray
 
     @staticmethod
-    def from_rows(rows) -> "Walls":
+    def from_rows(rows) -> Walls:
         arr = np.asarray([r[:4] for r in rows], dtype=np.float32).reshape(-1, 4)
         tex = np.asarray([int(r[4]) for r in rows], dtype=np.int32)
         if tex.min() < 0 or tex.max() >= NUM_TEXTURES:
@@ -235,7 +235,7 @@ class Sprites(NamedTuple):
     visible: jnp.ndarray
 
     @staticmethod
-    def single(xy, look: int = GOAL) -> "Sprites":
+    def single(xy, look: int = GOAL) -> Sprites:
         return Sprites(jnp.asarray(xy, jnp.float32).reshape(1, 2), jnp.full((1,), look, jnp.int32), jnp.ones((1,), bool))
 
 

@@ -9,7 +9,6 @@ import numpy as np
 from simjax.envs import raycaster
 from simjax.envs.maze import Layout
 
-
 _ITEM_MARKERS = {raycaster.GOAL: ("*", 220, "goal"), raycaster.APPLE: ("o", 60, "apple (+1)"),
                  raycaster.LEMON: ("o", 60, "lemon (-1)"), raycaster.MELON: ("o", 160, "melon (+20)")}
 

@@ -82,13 +82,13 @@ import os
 import shutil
 import struct
 import tempfile
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import vizdoom as vzd
 
-from simjax.envs.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
 from simjax.envs.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
+from simjax.envs.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
 
 TICS_PER_STEP = 4
 LIVING_REWARD_PER_TIC = -0.0001  # the scenario's; our tasks have none
@@ -391,7 +391,7 @@ class MyWayHome:
 # 42x42 frames
 
 
-@lru_cache(maxsize=None)
+@cache
 def area_weights(n_in: int, n_out: int) -> np.ndarray:
     """(n_out, n_in) weights of an area-average resize along one axis.
 

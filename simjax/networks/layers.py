@@ -10,7 +10,7 @@ have ``nn.Conv``'s names, shapes and initialisers, and its outputs match ``nn.Co
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import flax.linen as nn
 import jax.numpy as jnp

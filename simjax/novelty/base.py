@@ -110,10 +110,10 @@ class RunningMeanStd(NamedTuple):
     count: jnp.ndarray
 
     @staticmethod
-    def create(shape=()) -> "RunningMeanStd":
+    def create(shape=()) -> RunningMeanStd:
         return RunningMeanStd(jnp.zeros(shape, jnp.float32), jnp.ones(shape, jnp.float32), jnp.zeros((), jnp.float32))
 
-    def update(self, batch: jnp.ndarray) -> "RunningMeanStd":
+    def update(self, batch: jnp.ndarray) -> RunningMeanStd:
         """Fold in ``batch`` (..., *shape): every leading axis is a sample axis."""
         x = batch.astype(jnp.float32).reshape((-1,) + self.mean.shape)
         n = jnp.float32(x.shape[0])
