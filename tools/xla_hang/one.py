@@ -1,0 +1,79 @@
+"""One trial: the seed-vmapped init + run_chunk that hung in tests/test_agents.py
+(test_update_shapes_determinism_and_seeds_vmap), in a fresh process.
+
+usage: python tools/xla_hang/one.py ALGO ENV NUM_ENVS     (prints one JSON line at the end; phases as it goes)
+HANG_HLO=1 also reports how many __ynn_fusion ops XLA put into the two compiled programs.
+"""
+
+import faulthandler
+import json
+import os
+import signal
+import sys
+import time
+
+T0 = time.perf_counter()
+faulthandler.register(signal.SIGUSR1, all_threads=True)  # the driver asks for stacks before killing a hung trial
+
+
+def phase(name):
+    print(f"PHASE {name} {time.perf_counter() - T0:.1f}", flush=True)
+
+
+phase("import")
+from simjax import runtime  # noqa: E402
+
+runtime.configure()  # the project's XLA flags, unless SIMJAX_KEEP_XLA_DEFAULTS=1
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+from simjax.agents import TrainConfig, make_trainer  # noqa: E402
+
+algo, env, num_envs = sys.argv[1], sys.argv[2], int(sys.argv[3])
+config = TrainConfig(env=env, algo=algo, num_envs=num_envs, rollout_len=5, total_steps=80, log_every=40, learning_rate=1e-3, num_seeds=2)
+trainer = make_trainer(config)
+keys = jnp.stack([jax.random.PRNGKey(0), jax.random.PRNGKey(1)])
+init = jax.jit(jax.vmap(trainer.init))
+chunk = jax.jit(jax.vmap(trainer.run_chunk))
+t_import = time.perf_counter() - T0
+
+phase("init")  # compile + run of the seed-vmapped init (the call that hung)
+t = time.perf_counter()
+runner = jax.block_until_ready(init(keys))
+t_init = time.perf_counter() - t
+
+phase("chunk")  # compile + run of one seed-vmapped training chunk
+t = time.perf_counter()
+after, metrics = jax.block_until_ready(chunk(runner))
+t_chunk = time.perf_counter() - t
+
+phase("again")  # the test's second pass: cached executables, run only
+t = time.perf_counter()
+again, metrics2 = jax.block_until_ready(chunk(init(keys)))
+t_again = time.perf_counter() - t
+same = all(bool(jnp.array_equal(a, b)) for a, b in zip(jax.tree.leaves(after.params), jax.tree.leaves(again.params)))
+
+ynn = None
+if os.environ.get("HANG_HLO"):
+    phase("hlo")
+    ynn = (init.lower(keys).compile().as_text().count("__ynn_fusion"), chunk.lower(runner).compile().as_text().count("__ynn_fusion"))
+
+phase("done")
+print(
+    "RESULT "
+    + json.dumps(
+        dict(
+            xla_flags=os.environ.get("XLA_FLAGS", ""),
+            async_dispatch=bool(jax.config.read("jax_cpu_enable_async_dispatch")),
+            t_import=round(t_import, 2),
+            t_init=round(t_init, 2),
+            t_chunk=round(t_chunk, 2),
+            t_again=round(t_again, 2),
+            t_total=round(time.perf_counter() - T0, 2),
+            deterministic=same,
+            ynn_fusions=ynn,
+            loss_finite=bool(jnp.all(jnp.isfinite(jnp.stack([jnp.asarray(v) for v in metrics.values()])))),
+        )
+    ),
+    flush=True,
+)
