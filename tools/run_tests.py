@@ -1,7 +1,7 @@
 """``make test``: run each test file in its own pytest process, under a hang watchdog.
 
 XLA:CPU (jaxlib 0.10.2) sometimes never signals the end of a finished computation: every
-worker thread idles while the caller waits forever (see simjax/__init__.py; seen here in
+worker thread idles while the caller waits forever (see simjax/runtime.py and docs/troubleshooting.md; seen here in
 about 1 of 5 runs of tests/test_agents.py under CPU contention, and once in a quiet run).
 A file whose process has not exited after ``--hang-seconds`` is killed and run once more; a
 file that fails is never rerun. The last line is the suite's total, 'N passed, N failed'.
