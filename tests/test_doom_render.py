@@ -45,7 +45,7 @@ def test_box_levels_and_prefix_sums_are_exact_averages():
 
 
 def test_area_matrix_averages():
-    m = doom_render._area_matrix(160, 42)
+    m = doom_render.area_matrix(160, 42)
     np.testing.assert_allclose(m.sum(1), 1.0)
     assert (m > 0).sum(1).max() <= 5  # 3.8 screen columns per output column
     np.testing.assert_allclose(m.sum(0) * 160 / 42, 1.0)  # every screen column counts once

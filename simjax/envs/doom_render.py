@@ -189,7 +189,7 @@ def build_look(walls: raycaster.Walls, texture_names, offsets_x, reversed_, asse
     )
 
 
-def _area_matrix(n_in: int, n_out: int) -> np.ndarray:
+def area_matrix(n_in: int, n_out: int) -> np.ndarray:
     """(n_out, n_in) weights of an area-averaging resize: output pixel j averages the input span
     [j n_in / n_out, (j + 1) n_in / n_out), partial pixels weighted by their overlap."""
     edges = np.arange(n_out + 1) * n_in / n_out
@@ -207,7 +207,7 @@ def _plane_rows(camera: DoomCamera, light: DoomLight, plane_rgb) -> tuple[np.nda
     centre = rows + 0.5 - camera.horizon  # the screen row's centre, below the horizon > 0
     # ZDoom lights a plane row by its whole-row distance from the horizon row
     away = np.abs(np.floor(camera.horizon + 0.5) - rows)
-    ry = _area_matrix(camera.screen_height, camera.height)
+    ry = area_matrix(camera.screen_height, camera.height)
     out = []
     for h, side in ((WALL_HEIGHT - camera.eye_height, centre < 0), (camera.eye_height, centre > 0)):
         k = light_index(light.plane_shade, light.plane_vis * away / h, light.max_vis, xp=np)

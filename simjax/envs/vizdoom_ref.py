@@ -87,6 +87,7 @@ from functools import cache
 import numpy as np
 import vizdoom as vzd
 
+from simjax.envs.doom_render import area_matrix
 from simjax.envs.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
 from simjax.envs.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
 
@@ -391,21 +392,10 @@ class MyWayHome:
 # 42x42 frames
 
 
-@cache
-def area_weights(n_in: int, n_out: int) -> np.ndarray:
-    """(n_out, n_in) weights of an area-average resize along one axis.
-
-    Output pixel i covers the source interval [i*s, (i+1)*s), s = n_in / n_out; its value is
-    the mean of the source pixels under that footprint, each weighted by the length of its
-    overlap (fractional at both ends). Rows sum to 1.
-    """
-    s = n_in / n_out
-    lo = np.arange(n_out)[:, None] * s
-    j = np.arange(n_in)[None, :]
-    overlap = np.clip(np.minimum(lo + s, j + 1) - np.maximum(lo, j), 0.0, None)
-    w = overlap / s
-    w.setflags(write=False)
-    return w
+# (n_out, n_in) weights of an area-average resize along one axis: the renderer's, so that the
+# frames compared in the tests are averaged by the same rule simjax draws by (cached: resize42
+# runs once per evaluated step)
+area_weights = cache(area_matrix)
 
 
 def resize_area(image: np.ndarray, out_h: int, out_w: int) -> np.ndarray:
