@@ -9,7 +9,7 @@ import pytest
 
 from simjax.envs import make
 from simjax.novelty import ICM, RND, SIM, Novelty, RunningMeanStd, build_timeline, init_memory
-from simjax.novelty.base import normalize_frames, shifted, spread
+from simjax.novelty.base import normalize_frames, spread
 
 A = 4  # the maze tasks' action count
 
@@ -40,10 +40,11 @@ def test_windows_carry_across_rollouts_and_stop_at_episode_starts(H, L):
     T, N, starts = 5, 2, [0, 7, 9, 16]
     sim = SIM(A, obs_len=H, act_len=L)
     for g0, tl in _index_rollouts(sim.history, T, N, starts, rollouts=5):
-        frame_mask, action_mask, inv_mask = sim.masks(tl)
+        w = sim.windows(tl)
+        frame_mask, action_mask = w.frame_mask, w.action_mask
         chex.assert_shape([frame_mask], (T, H, N))
         chex.assert_shape([action_mask], (T, L, N))
-        m = tl.history
+        assert bool(w.frame_start[0]) and not bool(w.frame_start[1:].any())  # no padding at full size
         for t in range(T):
             e = g0 + t + 1  # the target frame o_{t+1}, global index
             first = _episode_start(e, starts)
@@ -51,18 +52,15 @@ def test_windows_carry_across_rollouts_and_stop_at_episode_starts(H, L):
                 want_valid = e - k >= first
                 assert bool(frame_mask[t, i, 0]) == want_valid, (e, k)
                 if want_valid:  # the right frame, from this rollout or carried in memory
-                    assert int(shifted(tl.frames, m, T, k)[t, 0, 0, 0, 0]) == e - k
+                    assert int(tl.frames[w.frame_index[t, i], 0, 0, 0, 0]) == e - k
+                    if i < H - 1:  # the inverse model's label: the action taken at that frame
+                        assert int(tl.actions[w.frame_index[t, i], 0]) == e - k + 100
             for i, k in enumerate(range(L, 0, -1)):
                 assert bool(action_mask[t, i, 0]) == (e - k >= first)
                 if e - k >= first:
-                    assert int(shifted(tl.actions, m, T, k)[t, 0]) == e - k + 100
-            inv = sim.inverse_targets(tl)[t, :, 0]
-            for i, k in enumerate(range(L + H - 1, L, -1)):
-                if e - k >= first:
-                    assert int(inv[i]) == e - k + 100  # the action taken at frame e-k
+                    assert int(tl.actions[w.action_index[t, i], 0]) == e - k + 100
             # a target is scored iff the window's newest frame o_{e-L} is in its episode
             assert bool(frame_mask[t, -1, 0]) == (e - L >= first)
-        np.testing.assert_array_equal(inv_mask, frame_mask[:, :-1])
 
 
 def test_icm_stacks_are_zero_before_the_episode_start():
@@ -139,8 +137,7 @@ def test_sim_output_shapes_for_several_windows(H, L, frames):
     chex.assert_trees_all_equal_shapes(memory, new_memory)
     x = normalize_frames(tl.frames, None)
     params = sim.init(jax.random.PRNGKey(0), tl, x)
-    frame_mask, action_mask, _ = sim.masks(tl)
-    emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, frame_mask, action_mask)
+    emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, sim.windows(tl))
     T, N = actions.shape
     chex.assert_shape(emb, (sim.history + T + 1, N, 256))
     chex.assert_shape(prediction, (T, N, 64))
@@ -204,7 +201,7 @@ def test_frames_of_an_earlier_episode_never_change_the_new_episodes_scores(frame
         tl, _ = build_timeline(state.memory, o, reset, actions, last_obs, last_reset)
         x = normalize_frames(tl.frames, None)
         error, scored, _, _ = sim.apply(params, tl, x)
-        emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, *sim.masks(tl)[:2])
+        emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, sim.windows(tl))
         outs.append((error, scored, logits))
     # targets e = start + 1 ... T are o_{start+1} ... o_T, rows start ... T-1
     new_rows = slice(start, T)

@@ -11,9 +11,9 @@ from simjax.agents.a2c import (
     summarize,
     total_reward,
 )
-from simjax.agents.config import ALGOS, TrainConfig
+from simjax.agents.config import ALGOS, SWEEPABLE, Hyper, TrainConfig
 
 __all__ = [
-    "ALGOS", "RunnerState", "TrainConfig", "Trainer", "Transition", "make_train",
+    "ALGOS", "SWEEPABLE", "Hyper", "RunnerState", "TrainConfig", "Trainer", "Transition", "make_train",
     "make_trainer", "n_step_returns", "sampling_policy", "summarize", "total_reward",
 ]

@@ -42,7 +42,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from simjax.agents.config import TrainConfig
+from simjax.agents.config import Hyper, TrainConfig
 from simjax.envs import make
 from simjax.envs.episodes import rollout, starts_episode
 from simjax.networks import ActorCritic
@@ -69,10 +69,12 @@ class RunnerState(NamedTuple):
     carry: tuple  # LSTM (c, h), each (N, hidden); reset where env_state.done marks a new episode
     novelty: chex.ArrayTree  # NoveltyState: per-env frame/action memory, running statistics
     key: jnp.ndarray
+    hyper: Hyper  # the numeric settings this runner trains with (a sweep point's)
 
 
 class Trainer(NamedTuple):
-    """The pieces of a run: ``init(key)``, ``run_chunk(state)`` (K updates) and ``train(key)``."""
+    """The pieces of a run: ``init(key, hyper=None)``, ``run_chunk(state)`` (K updates) and
+    ``train(key, hyper=None)``; ``hyper`` defaults to the config's (``TrainConfig.hyper``)."""
 
     init: Callable
     run_chunk: Callable
@@ -112,24 +114,27 @@ def n_step_returns(rewards, dones, truncations, values, gamma: float):
     return returns
 
 
-def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bonus, config: TrainConfig):
-    """The A2C objective on one rollout, and its parts for logging."""
+def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bonus, config: TrainConfig,
+             hyper: Hyper | None = None):
+    """The A2C objective on one rollout, and its parts for logging; the numbers come from
+    ``hyper`` (default ``config.hyper()``), the structure (``bonus_episodic``) from ``config``."""
+    hyper = config.hyper() if hyper is None else hyper
     obs = jnp.concatenate([traj.obs, last_obs[None]], axis=0)
     reset = jnp.concatenate([traj.reset, last_reset[None]], axis=0)
     _, logits, values = network.apply(params, carry0, obs, reset)
     logits, value = logits[:-1], values[:-1]
     if config.bonus_episodic:
-        rewards = total_reward(config.task_scale, traj.reward, bonus)
-        returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), config.gamma)
+        rewards = total_reward(hyper.task_scale, traj.reward, bonus)
+        returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), hyper.gamma)
         advantage = returns - jax.lax.stop_gradient(value)
     else:  # two streams: the task's return ends with the episode, the bonus's runs on into the next
         chex.assert_shape(values, (traj.done.shape[0] + 1, traj.done.shape[1], 2))
         never = jnp.zeros_like(traj.done)
         v = jax.lax.stop_gradient(values)
         returns = jnp.stack([
-            n_step_returns(total_reward(config.task_scale, traj.reward, 0.0), traj.done, traj.truncation, v[..., 0],
-                           config.gamma),
-            n_step_returns(bonus, never, never, v[..., 1], config.gamma),
+            n_step_returns(total_reward(hyper.task_scale, traj.reward, 0.0), traj.done, traj.truncation, v[..., 0],
+                           hyper.gamma),
+            n_step_returns(bonus, never, never, v[..., 1], hyper.gamma),
         ], axis=-1)
         advantage = jnp.sum(returns - v[:-1], axis=-1)  # the policy follows both: A = A_task + A_bonus
     log_probs = jax.nn.log_softmax(logits)
@@ -139,7 +144,7 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
     squared = (returns - value) ** 2
     value_loss = jnp.mean(squared if config.bonus_episodic else squared.sum(-1))
     entropy_mean = jnp.mean(entropy)
-    loss = policy_loss + config.value_coef * value_loss - config.entropy_coef * entropy_mean
+    loss = policy_loss + hyper.value_coef * value_loss - hyper.entropy_coef * entropy_mean
     return loss, {
         "policy_loss": policy_loss,
         "value_loss": value_loss,
@@ -154,26 +159,30 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
     network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
     if novelty is None:  # the model must read the env's observations: checked here, before compiling
         novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
-    eta = config.policy_weight
 
-    def group(scale):
-        clip, eps = scale * config.max_grad_norm, scale * ADAM_EPS
-        return optax.chain(optax.clip_by_global_norm(clip), optax.adam(config.learning_rate, eps=eps))
+    def optimizer(hyper: Hyper):
+        """Adam per parameter group, built from the runner's (traced) settings each update: its
+        state (counts and moments) does not depend on them, so any values share one program."""
+        def group(scale):
+            clip, eps = scale * hyper.max_grad_norm, scale * ADAM_EPS
+            return optax.chain(optax.clip_by_global_norm(clip), optax.adam(hyper.learning_rate, eps=eps))
 
-    tx = optax.multi_transform(
-        {"policy": group(eta), "novelty": group(1.0)},
-        {"policy": "policy", "novelty": "novelty"},
-    )
+        return optax.multi_transform(
+            {"policy": group(hyper.policy_weight), "novelty": group(1.0)},
+            {"policy": "policy", "novelty": "novelty"},
+        )
+
     N, T = config.num_envs, config.rollout_len
 
-    def init(key) -> RunnerState:
+    def init(key, hyper: Hyper | None = None) -> RunnerState:
+        hyper = jax.tree.map(jnp.asarray, config.hyper() if hyper is None else hyper)
         k_net, k_env, k_nov, k_run = jax.random.split(key, 4)
         env_state = jax.vmap(env.reset)(jax.random.split(k_env, N))
         carry = network.initial_carry(N)
         policy = network.init(k_net, carry, env_state.obs[None], starts_episode(env_state)[None])
         novelty_params, novelty_state = novelty.init(k_nov, env_state.obs)
         params = {"policy": policy, "novelty": novelty_params}
-        return RunnerState(params, tx.init(params), env_state, carry, novelty_state, k_run)
+        return RunnerState(params, optimizer(hyper).init(params), env_state, carry, novelty_state, k_run, hyper)
 
     def record(state, action, next_state) -> Transition:
         return Transition(
@@ -194,10 +203,12 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
 
     def loss_fn(params, runner: RunnerState, traj: Transition, last_obs, last_reset):
         novelty_loss, (bonus, novelty_info, novelty_state) = novelty.loss_and_bonus(
-            params["novelty"], runner.novelty, traj.obs, traj.reset, traj.action, last_obs, last_reset
+            params["novelty"], runner.novelty, traj.obs, traj.reset, traj.action, last_obs, last_reset,
+            runner.hyper.novelty,
         )
-        rl_loss, info = a2c_loss(params["policy"], network, runner.carry, traj, last_obs, last_reset, bonus, config)
-        return eta * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
+        rl_loss, info = a2c_loss(params["policy"], network, runner.carry, traj, last_obs, last_reset, bonus, config,
+                                 runner.hyper)
+        return runner.hyper.policy_weight * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
 
     def update(runner: RunnerState, _):
         env_state, carry, key, traj = collect(runner)
@@ -205,19 +216,20 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         grads, (info, novelty_state) = jax.grad(loss_fn, has_aux=True)(
             runner.params, runner, traj, env_state.obs, starts_episode(env_state)
         )
-        updates, opt_state = tx.update(grads, runner.opt_state, runner.params)
+        updates, opt_state = optimizer(runner.hyper).update(grads, runner.opt_state, runner.params)
         params = optax.apply_updates(runner.params, updates)
         m = traj.metrics
         done = m["episode_done"]
         info = {
             **info,
-            "grad_norm": optax.tree.norm(grads["policy"]) / eta,  # of the A2C loss, as plain A2C logs it
+            # of the A2C loss, as plain A2C logs it
+            "grad_norm": optax.tree.norm(grads["policy"]) / runner.hyper.policy_weight,
             "episodes": jnp.sum(done),
             "successes": jnp.sum(done * m["episode_success"]),
             "length_sum": jnp.sum(done * m["episode_length"]),
             "return_sum": jnp.sum(done * m["episode_return"]),
         }
-        return RunnerState(params, opt_state, env_state, carry, novelty_state, key), info
+        return RunnerState(params, opt_state, env_state, carry, novelty_state, key, runner.hyper), info
 
     def run_chunk(runner: RunnerState):
         """K = config.updates_per_log updates; episode counts summed, losses averaged."""
@@ -225,8 +237,8 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         sums = ("episodes", "successes", "length_sum", "return_sum")
         return runner, {k: (v.sum() if k in sums else v.mean()) for k, v in info.items()}
 
-    def train(key):
-        runner = init(key)
+    def train(key, hyper: Hyper | None = None):
+        runner = init(key, hyper)
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
     return Trainer(init, run_chunk, train, network, novelty)

@@ -13,13 +13,34 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
+
+import numpy as np
 
 from simjax.envs import check_name
-from simjax.novelty.settings import MODELS, NoveltySettings, flag
+from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, flag
 
 ALGOS = ("a2c",) + MODELS
 # paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method
 PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01}
+# the settings that change no array shape once windows are laid out for their largest values:
+# they are arrays in the runner state (``Hyper``), so a sweep over them is one compiled program
+SWEEPABLE = ("learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
+             "bonus_scale", "forward_weight", "rl_weight", "obs_len", "act_len")
+INT_SETTINGS = ("obs_len", "act_len")
+
+
+class Hyper(NamedTuple):
+    """A run's numeric settings as arrays (``TrainConfig.hyper``), carried in the runner state."""
+
+    learning_rate: np.ndarray
+    gamma: np.ndarray
+    value_coef: np.ndarray
+    entropy_coef: np.ndarray
+    max_grad_norm: np.ndarray
+    task_scale: np.ndarray
+    policy_weight: np.ndarray  # eta where a novelty model shares the objective, else 1
+    novelty: NoveltyHyper
 
 
 def _f(default, help):
@@ -103,6 +124,12 @@ class TrainConfig:
             act_len=self.act_len, sim_combine=self.sim_combine, sim_sequence=self.sim_sequence,
             sim_target=self.sim_target, sim_inverse=self.sim_inverse,
         )
+
+    def hyper(self) -> Hyper:
+        """The settings in ``SWEEPABLE`` as arrays, the values the compiled learner runs with."""
+        f = np.float32
+        return Hyper(f(self.learning_rate), f(self.gamma), f(self.value_coef), f(self.entropy_coef),
+                     f(self.max_grad_norm), f(self.task_scale), f(self.policy_weight), self.novelty.hyper())
 
     @property
     def policy_weight(self) -> float:

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from simjax.novelty.base import Memory, RunningMeanStd, Timeline, build_timeline, in_episode, init_memory
 from simjax.novelty.bonus import METRICS, Novelty, NoveltyState
-from simjax.novelty.models import ICM, RND, SIM
-from simjax.novelty.settings import MODELS, NoveltySettings, check_observation
+from simjax.novelty.models import ICM, RND, SIM, Windows
+from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, check_observation
 
 
 def make_model(settings: NoveltySettings, num_actions: int):
@@ -41,7 +41,7 @@ def make_novelty(settings: NoveltySettings, num_actions: int, obs_shape=None, ta
 
 
 __all__ = [
-    "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltySettings", "NoveltyState", "RND", "RunningMeanStd",
-    "SIM", "Timeline", "build_timeline", "check_observation", "in_episode", "init_memory", "make_model",
+    "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltyHyper", "NoveltySettings", "NoveltyState", "RND", "RunningMeanStd",
+    "SIM", "Timeline", "Windows", "build_timeline", "check_observation", "in_episode", "init_memory", "make_model",
     "make_novelty",
 ]

@@ -2,7 +2,7 @@
 
     params, state = novelty.init(key, obs)                      obs: (N, h, w, c), the first frames
     loss, (bonus, metrics, state) = novelty.loss_and_bonus(params, state, obs, reset, actions,
-                                                           last_obs, last_reset)
+                                                           last_obs, last_reset, hyper=None)
 ``bonus`` (T, N) is r+ for each rollout transition, already scaled by beta and free of
 gradients; ``loss`` is lambda * L_F + (1 - lambda) * L_I of eq. (8), to be added to eta times
 the RL loss. ``state`` carries each environment's last frames and actions across rollouts and
@@ -16,6 +16,9 @@ the running statistics of the two normalisations:
   environment, as in RND. Off by default because the paper's beta (0.001 for SIM, 0.01 for
   ICM and RND) scales unnormalised errors; with it on, beta is the scale of a unit-std bonus.
 With no model (``algo=a2c``) the bonus is zero, the loss is zero and the params are empty.
+``hyper`` (a ``NoveltyHyper``; by default this object's own values) supplies beta, the
+normaliser's discount, lambda and SIM's H and L as arrays, so that a sweep's points share one
+compiled program.
 """
 
 from __future__ import annotations
@@ -70,19 +73,20 @@ class Novelty:
     def _frames(self, tl, obs_stats):
         return normalize_frames(tl.frames, obs_stats if self.obs_norm else None)
 
-    def loss_and_bonus(self, params, state: NoveltyState, obs, reset, actions, last_obs, last_reset):
+    def loss_and_bonus(self, params, state: NoveltyState, obs, reset, actions, last_obs, last_reset, hyper=None):
         if self.model is None:
             zero = jnp.zeros(())
             return zero, (jnp.zeros(actions.shape, jnp.float32), {k: zero for k in METRICS}, state)
         tl, memory = build_timeline(state.memory, obs, reset, actions, last_obs, last_reset)
         obs_stats = state.obs_stats.update(obs) if self.obs_norm else state.obs_stats
-        error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats))
+        error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats), hyper)
         error = jax.lax.stop_gradient(error) * scored
         ret_stats, ret_running = state.ret_stats, state.ret_running
         if self.bonus_norm:
-            ret_running, returns = discounted_filter(ret_running, error, self.gamma)
+            gamma = self.gamma if hyper is None else hyper.gamma
+            ret_running, returns = discounted_filter(ret_running, error, gamma)
             ret_stats = ret_stats.update(returns)
             error = error / jnp.sqrt(ret_stats.var + 1e-8)
-        bonus = self.bonus_scale * error
+        bonus = (self.bonus_scale if hyper is None else hyper.bonus_scale) * error
         metrics = {**metrics, "bonus_mean": jnp.mean(bonus)}
         return loss, (bonus, metrics, NoveltyState(memory, obs_stats, ret_stats, ret_running))

@@ -12,7 +12,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.networks.actor_critic import ResetLSTM
 from simjax.networks.layers import PatchConv, conv_stack
 
 SQRT2 = float(np.sqrt(np.float32(2.0)))  # float32's sqrt(2), in numpy: no computation on import
@@ -56,19 +55,66 @@ class FrameEmbedding(nn.Module):
         return nn.relu(nn.Dense(self.features)(_flatten(conv_stack(x, (16, 32)))))
 
 
+class WindowLSTM(nn.Module):
+    """An LSTM over short windows whose inputs are projected once per timeline entry.
+
+    Windows overlap (H windows share a frame), so ``project`` (x W_ih, no bias) runs once per
+    frame or action and ``__call__`` gathers the projections into windows and scans only
+    h W_hh + b over them. Gates i, f, g, o as in flax's ``OptimizedLSTMCell``, with the same
+    initialisers (lecun-normal input kernels, one orthogonal block per recurrent gate kernel).
+    """
+
+    hidden: int = 256
+
+    def setup(self):
+        self.input = nn.Dense(4 * self.hidden, use_bias=False, name="input")
+
+        def gate_blocks(key, shape, dtype=jnp.float32):
+            init = nn.initializers.orthogonal()
+            return jnp.concatenate([init(k, (shape[0], self.hidden), dtype) for k in jax.random.split(key, 4)], axis=1)
+
+        self.recurrent = self.param("recurrent", gate_blocks, (self.hidden, 4 * self.hidden))
+        self.bias = self.param("bias", nn.initializers.zeros, (4 * self.hidden,))
+
+    def project(self, x: jnp.ndarray) -> jnp.ndarray:
+        return self.input(x)
+
+    def __call__(self, proj: jnp.ndarray, start: jnp.ndarray) -> jnp.ndarray:
+        """Final hidden state (B, hidden) after the S steps of ``proj`` (S, B, 4 hidden); the
+        carry is zeroed before step s where ``start[s]``."""
+
+        def step(carry, xs):
+            p, fresh = xs
+            c, h = jax.tree.map(lambda v: jnp.where(fresh, jnp.zeros_like(v), v), carry)
+            i, f, g, o = jnp.split(p + h @ self.recurrent + self.bias, 4, axis=-1)
+            c = nn.sigmoid(f) * c + nn.sigmoid(i) * jnp.tanh(g)
+            return (c, nn.sigmoid(o) * jnp.tanh(c)), None
+
+        zeros = jnp.zeros(proj.shape[1:-1] + (self.hidden,), proj.dtype)
+        (_, h), _ = jax.lax.scan(step, (zeros, zeros), (proj, start))
+        return h
+
+
+def gather_windows(values: jnp.ndarray, index: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
+    """values (M+T+1 or M+T, N, D) at index (T, S) -> (T, S, N, D), zero where not ``mask`` (T, S, N)."""
+    return values[index] * mask[..., None].astype(values.dtype)
+
+
 class SIMNet(nn.Module):
     """SIM's trained part (section 2, A.1) on a timeline of embedded-once frames.
 
-    ``__call__(x (M+T+1, N, h, w, c), actions (M+T, N), frame_mask (T, H, N), action_mask
-    (T, L, N))`` returns the frame embeddings (M+T+1, N, 256), the forward prediction (T, N,
-    target_dim) and the inverse logits (T, N, H-1, |A|) (None when the inverse head is off).
-    Target e's window is frames e-L-H+1 ... e-L (oldest first) and actions e-L ... e-1;
-    masked slots are zeroed after embedding.
+    ``__call__(x (M+T+1, N, h, w, c), actions (M+T, N), windows)`` returns the frame embeddings
+    (M+T+1, N, 256), the forward prediction (T, N, target_dim) and the inverse logits
+    (T, N, H_max-1, |A|) (None when the inverse head is off). ``windows`` (``models.Windows``)
+    says which frames and actions each target's window holds: for target e, frames
+    e-L-H+1 ... e-L and actions e-L ... e-1, right-aligned in H_max and L_max slots; masked
+    slots enter as zeros, and the LSTMs start at the first real slot, so a window laid out for
+    larger H_max, L_max gives exactly what a model built for (H, L) gives.
     """
 
     num_actions: int
-    obs_len: int  # H
-    act_len: int  # L
+    obs_len: int  # H_max: frame slots per window
+    act_len: int  # L_max: action slots per window
     combine: str = "full"  # full: [h^o, h^a, h^o*h^a]; itr: h^o*h^a; concat: [h^o, h^a]
     sequence: str = "lstm"  # lstm: two LSTMs over the windows; ff: fc 256 over the stacked window
     inverse: bool = True
@@ -76,26 +122,29 @@ class SIMNet(nn.Module):
     hidden: int = 256
 
     @nn.compact
-    def __call__(self, x, actions, frame_mask, action_mask):
+    def __call__(self, x, actions, windows):
         H, L, A = self.obs_len, self.act_len, self.num_actions
         M = H + L - 2
-        T = x.shape[0] - M - 1
-        chex.assert_shape(actions, (M + T,) + x.shape[1:2])
-        chex.assert_shape([frame_mask], (T, H, x.shape[1]))
-        chex.assert_shape([action_mask], (T, L, x.shape[1]))
+        T, n = x.shape[0] - M - 1, x.shape[1]
+        chex.assert_shape(actions, (M + T, n))
+        chex.assert_shape([windows.frame_index], (T, H))
+        chex.assert_shape([windows.frame_mask], (T, H, n))
+        chex.assert_shape([windows.action_index], (T, L))
+        chex.assert_shape([windows.action_mask], (T, L, n))
         emb = FrameEmbedding(self.hidden)(x)  # every frame embedded once
-        # windows of embeddings, gathered with static slices: (T, H, N, 256) and (T, L, N, A)
-        frames = jnp.stack([emb[M + 1 - k : M + 1 - k + T] for k in range(L + H - 1, L - 1, -1)], axis=1)
-        acts = jnp.stack([actions[M + 1 - k : M + 1 - k + T] for k in range(L, 0, -1)], axis=1)
-        frames = frames * frame_mask[..., None]
-        a_emb = nn.relu(nn.Dense(128, name="ActionEmbedding")(jax.nn.one_hot(acts, A))) * action_mask[..., None]
-        n = x.shape[1]
+        # one action embedding per action value: a table (A, 128), looked up per timeline step
+        table = nn.relu(nn.Dense(128, name="ActionEmbedding")(jnp.eye(A, dtype=jnp.float32)))
         if self.sequence == "lstm":
-            h_o = self._last_lstm(frames, "FrameLSTM")
-            h_a = self._last_lstm(a_emb, "ActionLSTM")
+            frame_lstm, action_lstm = WindowLSTM(self.hidden, name="FrameLSTM"), WindowLSTM(self.hidden, name="ActionLSTM")
+            h_o = self._last(frame_lstm, frame_lstm.project(emb), windows.frame_index, windows.frame_mask,
+                             windows.frame_start)
+            h_a = self._last(action_lstm, action_lstm.project(table)[actions], windows.action_index,
+                             windows.action_mask, windows.action_start)
         elif self.sequence == "ff":
+            frames = gather_windows(emb, windows.frame_index, windows.frame_mask)  # (T, H, N, 256)
+            acts = gather_windows(table[actions], windows.action_index, windows.action_mask)
             h_o = nn.relu(nn.Dense(self.hidden, name="FrameFF")(jnp.moveaxis(frames, 1, 2).reshape(T, n, -1)))
-            h_a = nn.relu(nn.Dense(self.hidden, name="ActionFF")(jnp.moveaxis(a_emb, 1, 2).reshape(T, n, -1)))
+            h_a = nn.relu(nn.Dense(self.hidden, name="ActionFF")(jnp.moveaxis(acts, 1, 2).reshape(T, n, -1)))
         else:
             raise ValueError(f"unknown sequence model {self.sequence!r}")
         if self.combine == "full":
@@ -112,12 +161,11 @@ class SIMNet(nn.Module):
             logits = nn.Dense((H - 1) * A, name="Inverse")(h).reshape(T, n, H - 1, A)
         return emb, prediction, logits
 
-    def _last_lstm(self, seq: jnp.ndarray, name: str) -> jnp.ndarray:
-        """Final hidden state of an LSTM run over axis 1 of (T, S, N, D), batched over T*N."""
+    def _last(self, lstm: WindowLSTM, proj, index, mask, start) -> jnp.ndarray:
+        """The LSTM's final hidden state over each target's window: (T, N, hidden)."""
+        seq = gather_windows(proj, index, mask)  # (T, S, N, 4 hidden)
         T, S, N, D = seq.shape
-        xs = jnp.moveaxis(seq, 1, 0).reshape(S, T * N, D)
-        carry = ResetLSTM.initial_carry(T * N, self.hidden)
-        (_, h), _ = ResetLSTM(self.hidden, name=name)(carry, (xs, jnp.zeros((S, T * N), bool)))
+        h = lstm(jnp.moveaxis(seq, 1, 0).reshape(S, T * N, D), start)
         return h.reshape(T, N, self.hidden)
 
 

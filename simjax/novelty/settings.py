@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
+
+import numpy as np
 
 MODELS = ("sim", "rnd", "icm")  # and "a2c": no model, no bonus
 SIM_COMBINE = ("full", "itr", "concat")
@@ -14,6 +17,18 @@ SIM_TARGET = ("rnd", "embed")
 MAX_WINDOW = 64  # H and L above this are almost surely typos (memory is H + L - 2 frames per env)
 # RND's target (8x8 s4, 4x4 s2, 3x3 s1, all VALID) leaves at least one pixel from 36x36 frames
 RND_TARGET_MIN_SIZE = 36
+
+
+class NoveltyHyper(NamedTuple):
+    """The novelty settings that change no array shape, as arrays: one compiled program takes
+    any values of them (a sweep vmaps over them). SIM's H and L are among them: its windows are
+    laid out for the largest H and L and masked (``SIM.windows``)."""
+
+    bonus_scale: np.ndarray  # beta
+    gamma: np.ndarray  # discount of the bonus normaliser's running return
+    forward_weight: np.ndarray  # lambda
+    obs_len: np.ndarray  # int32, H
+    act_len: np.ndarray  # int32, L
 
 
 def flag(name: str) -> str:
@@ -53,6 +68,11 @@ class NoveltySettings:
             raise ValueError(f"{flag('forward_weight')} (lambda) must lie in [0, 1], got {self.forward_weight}")
         if not (self.bonus_scale >= 0 and math.isfinite(self.bonus_scale)):
             raise ValueError(f"{flag('bonus_scale')} must be a finite number >= 0, got {self.bonus_scale}")
+
+    def hyper(self) -> NoveltyHyper:
+        """These settings' traced values (numpy, so building them computes nothing on a device)."""
+        return NoveltyHyper(np.float32(self.bonus_scale), np.float32(self.gamma), np.float32(self.forward_weight),
+                            np.int32(self.obs_len), np.int32(self.act_len))
 
     @property
     def reads_images(self) -> bool:

@@ -62,6 +62,7 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
         raise ValueError(f"{src} is at {source.env_steps:,} steps; give a larger --total-steps")
     fresh = jax.jit(jax.vmap(make_trainer(config).init))(seed_keys(config))
     runner, new_leaves = _graft(serialization.to_state_dict(jax.device_get(fresh)), source.state)
+    runner["hyper"] = serialization.to_state_dict(jax.device_get(fresh.hyper))  # the fork's settings, not the source's
 
     dst.mkdir(parents=True)
     shutil.copyfile(src / "metrics.csv", dst / "metrics.csv")
