@@ -6,14 +6,16 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
 ENV    ?= maze-very-sparse
-ALGO   ?= a2c
+ALGO   ?= sim
 STEPS  ?= 2000000
 SEEDS  ?= 1
 OUT    ?=
 ARGS   ?=
 RESUME ?=
+L      ?=
+H      ?=
 
-.PHONY: train test lint bench clean-venv
+.PHONY: train sweep test lint bench clean-venv
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +30,12 @@ ifneq ($(RESUME),)
 else
 	$(PY) -m simjax.train --env $(ENV) --algo $(ALGO) --total-steps $(STEPS) --num-seeds $(SEEDS) $(if $(OUT),--out $(OUT)) $(ARGS)
 endif
+
+# make sweep ALGO=sim L=1,2,3,4,5 H=10 SEEDS=3: every combination of the comma-separated values
+# (and of any sweepable flag in ARGS, e.g. ARGS="--bonus-scale 0.01,0.001") in one compiled program
+sweep: $(STAMP)
+	$(PY) -m simjax.sweep --env $(ENV) --algo $(ALGO) --total-steps $(STEPS) --num-seeds $(SEEDS) \
+		$(if $(L),--act-len $(L)) $(if $(H),--obs-len $(H)) $(if $(OUT),--out $(OUT)) $(ARGS)
 
 test: $(STAMP)
 	$(PY) tools/run_tests.py

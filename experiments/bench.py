@@ -14,16 +14,23 @@ Measures, each as the median of several calls of one compiled program (compile t
   machine's measured float32 matmul peak that gives;
 - the same loop with each novelty model (SIM at H=10, L=3, the paper's sizes; RND; ICM), with
   the novelty model's FLOPs added, and where the time of one update goes: the novelty model's
-  forward+backward on one rollout, timed alone, against the whole update.
+  forward+backward on one rollout, timed alone, against the whole update;
+- a sweep's padding overhead: SIM's loop for L = 1..5 (H = 10) as one 5-member program with
+  windows laid out for L = 5, against the 5 programs built each for its own L, run one after
+  the other (what 5 separate runs do);
+- one device against two: 2 SIM seeds as one program on one CPU device, and sharded over two
+  (``--xla_force_host_platform_device_count=2``), each in a fresh process.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
+import json
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -139,9 +146,9 @@ def novelty_flops_per_agent_step(trainer, runner, config, batch) -> float:
 
     flops = _xla_flops(jax.grad(loss), params)
     if config.algo == "sim" and config.sim_sequence == "lstm":
+        # the input projections run once per frame, outside the scans; only h W_hh is inside
         windows = config.rollout_len * config.num_envs
-        missed = (config.obs_len - 1) * _lstm_step_flops(windows, 256, 256)
-        missed += (config.act_len - 1) * _lstm_step_flops(windows, 128, 256)
+        missed = (config.obs_len - 1 + config.act_len - 1) * _lstm_step_flops(windows, 0, 256)
         flops += 3.0 * missed
     return flops / config.steps_per_update
 
@@ -166,12 +173,75 @@ def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8) ->
             "flops_per_step": a2c_flops + nov_flops, "novelty_share": novelty_s / (med / config.updates_per_log)}
 
 
+def _sweep_chunk(config: TrainConfig, sweep: dict):
+    """A jitted chunk of a sweep's members and the runner state it starts from."""
+    from simjax.agents import summarize
+    from simjax.runs.grid import batch_inputs, check_sweep
+
+    config, grid = check_sweep(dict(config.__dict__), sweep)
+    trainer = make_trainer(config)
+    runner = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
+    return (lambda r: jax.vmap(lambda x: (lambda out: (out[0], summarize(out[1])))(trainer.run_chunk(x)))(r)), runner
+
+
+def bench_sweep(task: str, values=(1, 2, 3, 4, 5), num_envs: int = 16, updates: int = 4) -> dict:
+    """Agent steps/s of one program sweeping L over ``values`` against one program per L."""
+    base = TrainConfig(env=task, algo="sim", num_envs=num_envs, total_steps=num_envs * 20 * updates,
+                       log_every=num_envs * 20 * updates)
+    steps = base.updates_per_log * base.steps_per_update
+    chunk, runner = _sweep_chunk(base, {"act_len": list(values)})
+    compile_s, med, _ = time_call(chunk, runner, repeats=3)
+    separate_s, separate_compile = 0.0, 0.0
+    for L in values:
+        chunk, runner = _sweep_chunk(base, {"act_len": [L]})
+        c, m, _ = time_call(chunk, runner, repeats=3)
+        separate_s, separate_compile = separate_s + m, separate_compile + c
+    n = len(values)
+    return {"points": n, "envs": num_envs, "sweep_steps_per_s": n * steps / med, "sweep_compile_s": compile_s,
+            "separate_steps_per_s": n * steps / separate_s, "separate_compile_s": separate_compile}
+
+
+def devices_probe(task: str, seeds: int = 2, num_envs: int = 16, updates: int = 4) -> dict:
+    """In this process: SIM's loop for ``seeds`` seeds, sharded over every local device."""
+    from simjax.runs.training import batch_sharding
+
+    config = TrainConfig(env=task, algo="sim", num_envs=num_envs, num_seeds=seeds,
+                         total_steps=num_envs * 20 * updates, log_every=num_envs * 20 * updates)
+    chunk, runner = _sweep_chunk(config, {})
+    sharding = batch_sharding(seeds)
+    if sharding is not None:
+        runner = jax.device_put(runner, sharding)
+    compile_s, med, _ = time_call(chunk, runner, repeats=3)
+    steps = config.updates_per_log * config.steps_per_update * seeds
+    return {"devices": len(jax.local_devices()), "seeds": seeds, "steps_per_s": steps / med, "compile_s": compile_s}
+
+
+def bench_devices(task: str) -> list[dict]:
+    """``devices_probe`` in fresh processes with one CPU device and with two."""
+    results = []
+    for n in (1, 2):
+        env = os.environ | {"XLA_FLAGS": (os.environ.get("XLA_FLAGS", "")
+                                          + f" --xla_force_host_platform_device_count={n}").strip()}
+        out = subprocess.run([sys.executable, __file__, "--devices-probe", "--task", task], env=env, check=True,
+                             capture_output=True, text=True).stdout
+        results.append(json.loads(out.strip().splitlines()[-1]))
+    return results
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
+    parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--only", choices=("sweep", "devices"), default=None,
+                        help="run only the sweep-overhead or the device-count rows")
     args = parser.parse_args(argv)
     runtime.configure()
+    if args.devices_probe:
+        print(json.dumps(devices_probe(args.task)))
+        return 0
+    if args.only:
+        return report_only(args)
 
     started = time.time()
     peak = matmul_peak()
@@ -186,6 +256,7 @@ def main(argv=None) -> int:
     mazes = [bench_maze_generation(c) for c in (9, 11)]
     trains = [bench_train(args.task, n) for n in (16, 32, 64)]
     novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm")]
+    sweep, devices = bench_sweep(args.task), bench_devices(args.task)
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
         "",
@@ -224,6 +295,7 @@ def main(argv=None) -> int:
               "alone, as a share of one whole update (rollout, both losses, gradients, Adam):", ""]
     lines += [f"- {r['algo'].upper()} (N={r['envs']}, T=20{', H=10, L=3' if r['algo'] == 'sim' else ''}): "
               f"{100 * r['novelty_share']:.0f}%" for r in novelties]
+    lines += ["", *sweep_lines(sweep), "", *device_lines(devices)]
     per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
     lines += ["", "Maze generation alone (`explore-goals`, 1024 mazes per call, `vmap`):", ""]
     lines += [f"- {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
@@ -246,6 +318,38 @@ def main(argv=None) -> int:
             "# Benchmarks\n\nEach section is one run of the command it names, on this project's 2-core CPU machine.\n\n")
         with open(args.out, "a") as f:
             f.write(header + text + "\n")
+    return 0
+
+
+def sweep_lines(r: dict) -> list[str]:
+    return [f"A sweep of L = 1..{r['points']} (SIM, H=10, N={r['envs']}), one program with windows for L = "
+            f"{r['points']}: {r['sweep_steps_per_s']:,.0f} agent steps/s (compiled in {r['sweep_compile_s']:.0f} s); "
+            f"the {r['points']} programs built each for its L, run one after another: "
+            f"{r['separate_steps_per_s']:,.0f} agent steps/s (compiled in {r['separate_compile_s']:.0f} s together); "
+            f"padding overhead {100 * (r['separate_steps_per_s'] / r['sweep_steps_per_s'] - 1):+.0f}% time per agent step."]
+
+
+def device_lines(results: list[dict]) -> list[str]:
+    one, two = results
+    return [f"SIM, {one['seeds']} seeds (N=16) as one program: {one['steps_per_s']:,.0f} agent steps/s on one CPU "
+            f"device, {two['steps_per_s']:,.0f} sharded over two (one per core; fresh processes, "
+            f"`--xla_force_host_platform_device_count`): x{two['steps_per_s'] / one['steps_per_s']:.2f}."]
+
+
+def report_only(args) -> int:
+    """Only the sweep-overhead or device-count rows, appended as their own section."""
+    started = time.time()
+    peak = matmul_peak()
+    lines = [f"## {dt.date.today().isoformat()}: `python experiments/bench.py --only {args.only}` ({args.task})", "",
+             f"Machine: {os.cpu_count()} cores, jax {jax.__version__}; float32 matmul peak measured now: "
+             f"{peak / 1e9:.0f} GFLOP/s.", ""]
+    lines += sweep_lines(bench_sweep(args.task)) if args.only == "sweep" else device_lines(bench_devices(args.task))
+    lines += ["", f"Took {time.time() - started:.0f} s.", ""]
+    text = "\n".join(lines)
+    print(text)
+    if args.out:
+        with open(args.out, "a") as f:
+            f.write(text + "\n")
     return 0
 
 

@@ -26,12 +26,23 @@ _FIELD_TYPES = {"int": int, "float": float, "str": str, "bool": parse_bool, "flo
 _FIELDS = tuple(f.name for f in dataclasses.fields(TrainConfig))
 
 
-def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings") -> None:
-    """``--env``, ``--algo``, ... : one flag per TrainConfig field, its default in its help."""
+def list_of(kind):
+    """A flag type for comma-separated values of ``kind``: '1,2,3' -> [1, 2, 3]."""
+    def parse(text: str) -> list:
+        return [kind(part) for part in text.split(",") if part.strip()]
+
+    parse.__name__ = f"comma-separated {kind.__name__}"
+    return parse
+
+
+def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings", lists: bool = False) -> None:
+    """``--env``, ``--algo``, ... : one flag per TrainConfig field, its default in its help.
+    With ``lists`` every flag takes comma-separated values (``simjax.sweep``)."""
     group = parser.add_argument_group(title)
     for field in dataclasses.fields(TrainConfig):
         shown = "" if field.default is None else f" (default: {field.default})"
-        group.add_argument("--" + field.name.replace("_", "-"), type=_FIELD_TYPES[str(field.type)],
+        kind = _FIELD_TYPES[str(field.type)]
+        group.add_argument("--" + field.name.replace("_", "-"), type=list_of(kind) if lists else kind,
                            default=argparse.SUPPRESS, help=field.metadata.get("help", "") + shown)
 
 

@@ -7,22 +7,44 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 from collections import defaultdict
 from pathlib import Path
 
 
-def read_metrics(run_dir: Path) -> dict[int, dict[str, list[float]]]:
-    """metrics.csv as {seed: {column: values}}."""
+def swept_columns(run_dir: Path) -> tuple[str, ...]:
+    """The swept settings of a sweep's folder (metrics.csv's columns before ``env_steps``)."""
+    with open(Path(run_dir) / "metrics.csv", newline="") as f:
+        header = next(csv.reader(f))
+    return tuple(header[: header.index("env_steps")])
+
+
+def read_members(run_dir: Path) -> dict[tuple, dict[str, list[float]]]:
+    """metrics.csv as {(point, seed): {column: values}}; a point is a tuple of (setting, value)
+    pairs, () for a plain run."""
     path = Path(run_dir) / "metrics.csv"
     if not path.exists():
         raise FileNotFoundError(f"no metrics.csv in {run_dir}")
-    by_seed: dict[int, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    swept = swept_columns(run_dir)
+    members: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
-            seed = int(float(row["seed"]))
+            key = (tuple((k, float(row[k])) for k in swept), int(float(row["seed"])))
             for k, v in row.items():
-                by_seed[seed][k].append(float(v))
-    return by_seed
+                members[key][k].append(float(v))
+    return members
+
+
+def read_metrics(run_dir: Path) -> dict[int, dict[str, list[float]]]:
+    """metrics.csv of a plain run as {seed: {column: values}} (a sweep: ``read_members``)."""
+    members = read_members(run_dir)
+    if any(point for point, _ in members):
+        raise ValueError(f"{run_dir} is a sweep; read it with read_members")
+    return {seed: cols for (_, seed), cols in members.items()}
+
+
+def _label(point: tuple) -> str:
+    return ", ".join(f"{k}={v:g}" for k, v in point)
 
 
 def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
@@ -30,21 +52,34 @@ def plot_run(run_dir: Path, filename: str = "curve.png") -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
-    by_seed = read_metrics(run_dir)
-    with_bonus = any(max(cols.get("bonus_mean", [0.0])) > 0 for cols in by_seed.values())
+    members = read_members(run_dir)
+    with_bonus = any(max(cols.get("bonus_mean", [0.0])) > 0 for cols in members.values())
     returns = any(
-        abs(r - s) > 1e-6 for cols in by_seed.values()
+        abs(r - s) > 1e-6 for cols in members.values()
         for r, s in zip(cols["mean_extrinsic_return"], cols["success_ratio"]) if r == r
     )
     second = ("mean_extrinsic_return", "mean episode return") if returns else ("mean_episode_length", "mean episode length")
+    columns = ["success_ratio", second[0]] + (["bonus_mean"] if with_bonus else [])
     fig, axes = plt.subplots(1, 3 if with_bonus else 2, figsize=(15 if with_bonus else 10, 3.6))
-    for seed, cols in sorted(by_seed.items()):
-        steps = cols["env_steps"]
-        axes[0].plot(steps, cols["success_ratio"], label=f"seed {seed}")
-        axes[1].plot(steps, cols[second[0]], label=f"seed {seed}")
-        if with_bonus:
-            axes[2].plot(steps, cols["bonus_mean"], label=f"seed {seed}")
+    points = sorted({point for point, _ in members})
+    if points == [()]:  # a plain run: one curve per seed
+        for (_, seed), cols in sorted(members.items()):
+            for ax, column in zip(axes, columns):
+                ax.plot(cols["env_steps"], cols[column], label=f"seed {seed}")
+    else:  # a sweep: one curve per point, the mean over its seeds, the band from min to max
+        for point in points:
+            seeds = [cols for (p, _), cols in sorted(members.items()) if p == point]
+            rows = min(len(c["env_steps"]) for c in seeds)
+            steps = seeds[0]["env_steps"][:rows]
+            for ax, column in zip(axes, columns):
+                values = np.array([c[column][:rows] for c in seeds])
+                with warnings.catch_warnings():  # rows where no seed ended an episode are NaN
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    line = ax.plot(steps, np.nanmean(values, axis=0), label=f"{_label(point)} ({len(seeds)} seeds)")
+                    ax.fill_between(steps, np.nanmin(values, axis=0), np.nanmax(values, axis=0),
+                                    color=line[0].get_color(), alpha=0.2, linewidth=0)
     axes[0].set(xlabel="agent steps", ylabel="success ratio", ylim=(-0.02, 1.02))
     axes[1].set(xlabel="agent steps", ylabel=second[1])
     if with_bonus:

@@ -1,6 +1,7 @@
 """Command line: ``python -m simjax.train --env maze-very-sparse ...`` (``make train``).
 
-Config in, run folder out (``simjax.runs.folder`` lists its files). Every run setting is a
+Config in, run folder out (``simjax.runs.folder`` lists its files); ``--resume`` continues a
+plain run or a sweep (``simjax.sweep``). Every run setting is a
 flag of ``TrainConfig``; bad values and tasks the learner cannot read fail here, before
 anything compiles or is written. A stopped run (Ctrl-C) keeps every row it wrote and still
 saves its checkpoint and curve; ``--resume FOLDER`` goes on from there.
@@ -91,7 +92,8 @@ def main(argv=None) -> int:
     if args.worker or args.no_supervise:
         try:
             run(config, out, args.quiet, resume=args.resume is not None,
-                stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard)
+                stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard,
+                sweep=folder.load_sweep(out) if args.resume is not None else None)
         except Diverged as err:
             print(f"python -m simjax.train: error: {err}", file=sys.stderr)
             return 1

@@ -1,8 +1,11 @@
 """A run folder on disk, written and read back.
 
     config.json         every setting of the run (``TrainConfig``) and, from a training
-                        process, the package versions
-    metrics.csv         one row per seed per log interval, appended and flushed as training goes
+                        process, the package versions; a sweep's also lists the swept values
+                        ("sweep") and the grid of points ("grid", ``simjax.runs.grid``)
+    metrics.csv         one row per seed (per sweep point and seed) per log interval, appended
+                        and flushed as training goes; a sweep's rows start with a column per
+                        swept setting
     checkpoint.msgpack  the runner state of every seed as of the last metrics row (rewritten,
                         atomically, after each row, so a stopped or killed run keeps it)
     curve.png           success ratio and mean episode length against agent steps
@@ -44,30 +47,53 @@ def atomic_write(path: Path, data: bytes) -> None:
 # -- config.json ----------------------------------------------------------------------------------
 
 
-def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = None) -> None:
-    """config.json: every setting (and, from a training process, the package versions)."""
-    record = {"config": dataclasses.asdict(config)} | ({"versions": versions} if versions else {})
+def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = None,
+                 sweep: dict[str, list] | None = None) -> None:
+    """config.json: every setting (and, from a training process, the package versions); for a
+    sweep, the swept values and the grid of points (``config`` holds the first point's values,
+    with windows for the largest H and L)."""
+    from simjax.runs.grid import grid_of
+
+    record = {"config": dataclasses.asdict(config)}
+    if sweep:
+        record |= {"sweep": sweep, "grid": grid_of(sweep)}
+    record |= {"versions": versions} if versions else {}
     atomic_write(Path(run_dir) / "config.json", json.dumps(record, indent=2).encode())
 
 
-def load_config(run_dir: Path) -> TrainConfig:
+def _read_config(run_dir: Path) -> dict:
     path = Path(run_dir) / "config.json"
     if not path.exists():
         raise FileNotFoundError(f"{run_dir} is not a run folder (no config.json)")
-    return TrainConfig(**json.loads(path.read_text())["config"])
+    return json.loads(path.read_text())
+
+
+def load_config(run_dir: Path) -> TrainConfig:
+    return TrainConfig(**_read_config(run_dir)["config"])
+
+
+def load_sweep(run_dir: Path) -> dict[str, list]:
+    """The swept values of a sweep's folder ({} for a plain run)."""
+    return _read_config(run_dir).get("sweep", {})
+
+
+def metric_columns(sweep: dict | None = None) -> tuple[str, ...]:
+    """metrics.csv's columns: a sweep's swept settings first, then ``METRIC_COLUMNS``."""
+    return tuple(sweep or ()) + METRIC_COLUMNS
 
 
 # -- metrics.csv (and TensorBoard) ------------------------------------------------------------------
 
 
-def rows_up_to(path: Path, steps: int) -> list[list[str]]:
+def rows_up_to(path: Path, steps: int, columns: tuple[str, ...] = METRIC_COLUMNS) -> list[list[str]]:
     """metrics.csv rows (header first) up to ``steps``: a row written after the last checkpoint
     (the process died between the two writes) is dropped, its update will be rerun."""
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    if not rows or tuple(rows[0]) != METRIC_COLUMNS:
+    if not rows or tuple(rows[0]) != tuple(columns):
         raise ValueError(f"{path} does not have the columns this version writes")
-    return [rows[0]] + [r for r in rows[1:] if int(r[0]) <= steps]
+    at = columns.index("env_steps")
+    return [rows[0]] + [r for r in rows[1:] if int(r[at]) <= steps]
 
 
 class MetricsLog:
@@ -76,25 +102,30 @@ class MetricsLog:
     to the CSV, as TensorBoard scalars in ``tensorboard/seed<K>/`` at step ``env_steps``.
 
     ``rows`` (header first) are what metrics.csv starts with: a resumed run's earlier rows.
+    A sweep's rows start with the point's value of each swept setting (``labels``), and its
+    TensorBoard folders are named by them too (``tensorboard/act_len=3/seed0/``).
     TensorBoard gets no point where a value is not finite (e.g. the success ratio of a row
     in which no episode ended): tensorboardX would print a warning for each."""
 
-    def __init__(self, run_dir: Path, rows: list[list[str]] | None = None, tensorboard: bool = False):
-        self.run_dir = Path(run_dir)
-        rows = rows or [list(METRIC_COLUMNS)]
+    def __init__(self, run_dir: Path, rows: list[list[str]] | None = None, tensorboard: bool = False,
+                 labels: tuple[str, ...] = ()):
+        self.run_dir, self.labels = Path(run_dir), tuple(labels)
+        rows = rows or [list(metric_columns(dict.fromkeys(labels)))]
         atomic_write(self.run_dir / "metrics.csv", "".join(",".join(r) + "\r\n" for r in rows).encode())
         self._file = open(self.run_dir / "metrics.csv", "a", newline="")
         self._csv = csv.writer(self._file)
         self._boards = {} if tensorboard else None
         # a resumed run drops its rows after the checkpoint; TensorBoard hides them too
-        self._purge_step = int(rows[-1][0]) + 1 if len(rows) > 1 else None
+        self._purge_step = int(rows[-1][len(self.labels)]) + 1 if len(rows) > 1 else None
 
-    def append(self, env_steps: int, seed: int, values: dict) -> None:
-        """One row: ``values`` holds every column after ``env_steps`` and ``seed``."""
+    def append(self, env_steps: int, seed: int, values: dict, point: dict | None = None) -> None:
+        """One row: ``values`` holds every column after ``env_steps`` and ``seed``; ``point``
+        the sweep point's value of each of ``labels``."""
+        point = point or {}
         text = [f"{values[c]:.1f}" if c in _ONE_DECIMAL else f"{values[c]:.6g}" for c in METRIC_COLUMNS[2:]]
-        self._csv.writerow([env_steps, seed] + text)
+        self._csv.writerow([point[k] for k in self.labels] + [env_steps, seed] + text)
         if self._boards is not None:
-            board = self._board(seed)
+            board = self._board("".join(f"{k}={point[k]}/" for k in self.labels) + f"seed{seed}")
             for column, value in zip(METRIC_COLUMNS[2:], text):
                 if math.isfinite(float(value)):
                     board.add_scalar(column, float(value), env_steps)
@@ -111,13 +142,12 @@ class MetricsLog:
         for board in (self._boards or {}).values():
             board.close()
 
-    def _board(self, seed: int):
-        if seed not in self._boards:
+    def _board(self, name: str):
+        if name not in self._boards:
             from tensorboardX import SummaryWriter
 
-            self._boards[seed] = SummaryWriter(str(self.run_dir / "tensorboard" / f"seed{seed}"),
-                                               purge_step=self._purge_step)
-        return self._boards[seed]
+            self._boards[name] = SummaryWriter(str(self.run_dir / "tensorboard" / name), purge_step=self._purge_step)
+        return self._boards[name]
 
 
 def tensorboard_available() -> str | None:
@@ -139,11 +169,14 @@ def seed_keys(config: TrainConfig):
     return jax.numpy.stack([jax.random.PRNGKey(config.seed + i) for i in range(config.num_seeds)])
 
 
-def runner_template(trainer, config: TrainConfig):
-    """The shapes and types of a run's runner state (every seed), without computing it."""
+def runner_template(trainer, config: TrainConfig, sweep: dict | None = None):
+    """The shapes and types of a run's runner state (every member: sweep point x seed), without
+    computing it."""
     import jax
 
-    return jax.eval_shape(jax.vmap(trainer.init), seed_keys(config))
+    from simjax.runs.grid import batch_inputs, grid_of
+
+    return jax.eval_shape(jax.vmap(trainer.init), *batch_inputs(config, grid_of(sweep or {})))
 
 
 def write_checkpoint(run_dir: Path, runner, env_steps: int, seeds: list[int]) -> None:
@@ -187,8 +220,8 @@ class Restored:
     state has since changed shape still give their policy; ``runner()`` rebuilds everything
     (the novelty model and its memory too). ``state`` is the runner as saved (a state dict)."""
 
-    def __init__(self, folder: Path, config: TrainConfig, checkpoint: dict, env=None):
-        self.folder, self.config = Path(folder), config
+    def __init__(self, folder: Path, config: TrainConfig, checkpoint: dict, env=None, sweep: dict | None = None):
+        self.folder, self.config, self.sweep = Path(folder), config, sweep or {}
         self.state = checkpoint["runner"]
         self.env_steps, self.seeds = int(checkpoint["env_steps"]), [int(s) for s in checkpoint["seeds"]]
         if env is not None:
@@ -210,7 +243,7 @@ class Restored:
 
     @functools.cached_property
     def _template(self):
-        return runner_template(self.trainer, self.config)
+        return runner_template(self.trainer, self.config, self.sweep)
 
     def policy(self, seed_index: int | None = None):
         """The policy's parameters: every seed's (leading axis: seed), or seed ``seed_index``'s."""
@@ -240,4 +273,4 @@ def restore(folder: Path, env=None) -> Restored:
     config = load_config(folder)
     if not (folder / "checkpoint.msgpack").exists():
         raise FileNotFoundError(f"{folder} has no checkpoint.msgpack")
-    return Restored(folder, config, load_checkpoint(folder), env)
+    return Restored(folder, config, load_checkpoint(folder), env, load_sweep(folder))

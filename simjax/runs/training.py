@@ -1,10 +1,15 @@
 """Training into a run folder: ``run(config, out)`` (``python -m simjax.train`` calls it).
 
-Each compiled call trains ``config.updates_per_log`` updates of every seed (``jax.vmap``); its
-metrics become one row per seed in metrics.csv, and the checkpoint is rewritten to match the
+Each compiled call trains ``config.updates_per_log`` updates of every member of the batch, one
+per sweep point and seed (``simjax.runs.grid``; a plain run's members are its seeds), as one
+``jax.vmap``; its metrics become one row per member in metrics.csv, and the checkpoint is rewritten to match the
 last row on disk, so a run stopped by Ctrl-C, killed, or stalled (``simjax.runs.stall``) goes
 on from there bit for bit with ``resume``. A run whose losses, gradient norm or parameters
 stop being finite ends at that row (``Diverged``), keeping the last finite checkpoint.
+
+With several local devices (GPUs, or CPU devices made by ``simjax.runtime.configure``), the
+members are sharded over them (a ``jax.sharding.Mesh`` over the batch axis); the program, and
+every member's numbers, are the same as on one device.
 """
 
 from __future__ import annotations
@@ -18,15 +23,15 @@ import numpy as np
 
 from simjax.agents import TrainConfig
 from simjax.runs.folder import (
-    METRIC_COLUMNS,
     MetricsLog,
     load_checkpoint,
+    metric_columns,
     rows_up_to,
     runner_template,
-    seed_keys,
     write_checkpoint,
     write_config,
 )
+from simjax.runs.grid import batch_inputs, grid_of, members
 from simjax.runs.progress import Progress, mean_over_seeds
 from simjax.runs.stall import StallWatchdog
 
@@ -41,25 +46,46 @@ class Diverged(RuntimeError):
     was written."""
 
 
-def non_finite(metrics: dict, params, seeds: list[int]) -> list[str]:
-    """What in one chunk's ``metrics`` and the ``params`` after it (leading axis: seed) is NaN
-    or infinite, one line per seed that has any: 'seed S: term value, ..., GROUP parameters'."""
+def non_finite(metrics: dict, params, names: list[str]) -> list[str]:
+    """What in one chunk's ``metrics`` and the ``params`` after it (leading axis: member) is NaN
+    or infinite, one line per member that has any: 'NAME: term value, ..., GROUP parameters'."""
     found = []
-    for i, seed in enumerate(seeds):
+    for i, name in enumerate(names):
         bad = [f"{k} {float(np.asarray(metrics[k])[i]):.6g}" for k in FINITE_TERMS
                if k in metrics and not np.isfinite(np.asarray(metrics[k])[i])]
         bad += [f"{group} parameters" for group, tree in params.items()
                 if not all(np.isfinite(np.asarray(leaf)[i]).all() for leaf in jax.tree.leaves(tree))]
         if bad:
-            found.append(f"seed {seed}: {', '.join(bad)}")
+            found.append(f"{name}: {', '.join(bad)}")
     return found
 
 
+def member_name(point: dict, seed: int) -> str:
+    return " ".join(f"{k}={v}" for k, v in point.items()) + (" " if point else "") + f"seed {seed}"
+
+
+def batch_sharding(batch: int, devices=None):
+    """A sharding of the leading (member) axis over the local devices, or None on one device.
+    Uses the most devices that divide the batch evenly."""
+    import math
+
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    devices = jax.local_devices() if devices is None else devices
+    n = math.gcd(batch, len(devices))
+    if n == 1:
+        return None
+    return NamedSharding(Mesh(np.array(devices[:n]), ("member",)), PartitionSpec("member"))
+
+
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
-        stall_limit: float | None = None, tensorboard: bool = False) -> Path:
+        stall_limit: float | None = None, tensorboard: bool = False, sweep: dict | None = None,
+        devices=None) -> Path:
     """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
     (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``;
-    ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``).
+    ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``);
+    ``sweep``: field -> values, every combination trained side by side (``check_sweep`` made
+    ``config`` from them); ``devices``: the devices to shard the members over (default: all).
     Raises ``Diverged`` at the first row with a non-finite loss, gradient norm or parameter."""
     from simjax import plotting, runtime
     from simjax.agents import make_trainer, summarize
@@ -68,43 +94,53 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     versions = {m: __import__(m).__version__ for m in ("jax", "flax", "optax", "brax")}
-    write_config(out, config, versions)  # on resume: the config read from it, with this process's versions
+    sweep = sweep or {}
+    # on resume: the config read from it, with this process's versions
+    write_config(out, config, versions, sweep)
 
     trainer = make_trainer(config)
-    seeds = [config.seed + i for i in range(config.num_seeds)]
+    grid = grid_of(sweep)
+    batch = members(config, grid)
+    seeds = [seed for _, seed in batch]
+    names = [member_name(point, seed) for point, seed in batch]
+    columns = metric_columns(sweep)
     done_steps, wall_before = 0, 0.0
-    rows = [list(METRIC_COLUMNS)]
+    rows = [list(columns)]
+    sharding = batch_sharding(len(batch), devices)
+    shard = {} if sharding is None else {"in_shardings": sharding, "out_shardings": sharding}
     watchdog = StallWatchdog(stall_limit) if stall_limit else None
     if watchdog:
         watchdog.begin()
     if resume and (out / "checkpoint.msgpack").exists():
-        ckpt = load_checkpoint(out, runner_template(trainer, config))
-        runner, done_steps = jax.device_put(ckpt["runner"]), int(ckpt["env_steps"])
-        rows = rows_up_to(out / "metrics.csv", done_steps)
+        ckpt = load_checkpoint(out, runner_template(trainer, config, sweep))
+        runner, done_steps = jax.device_put(ckpt["runner"], sharding), int(ckpt["env_steps"])
+        rows = rows_up_to(out / "metrics.csv", done_steps, columns)
         wall_before = float(rows[-1][-1]) if len(rows) > 1 else 0.0
     else:
-        runner = jax.jit(jax.vmap(trainer.init))(seed_keys(config))
+        runner = jax.jit(jax.vmap(trainer.init), **shard)(*jax.device_put(batch_inputs(config, grid), sharding))
 
     def chunk_and_summarize(r):
         r, metrics = trainer.run_chunk(r)
         return r, summarize(metrics)
 
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
-    chunk = jax.jit(jax.vmap(chunk_and_summarize))
+    chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
 
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
-    progress = Progress(total, quiet, config.num_seeds)
+    progress = Progress(total, quiet, len(batch))
     if not quiet:
         what = f"resuming at {done_steps:,} steps" if done_steps else "compiling"
-        print(f"{what}: {config.algo} on {config.env} ({config.num_seeds} seed(s), "
-              f"{config.num_envs} envs each); run folder {out}", file=sys.stderr, flush=True)
+        points = f"{len(grid)} sweep points x " if sweep else ""
+        on = f", on {len(sharding.mesh.devices)} devices" if sharding is not None else ""
+        print(f"{what}: {config.algo} on {config.env} ({points}{config.num_seeds} seed(s), "
+              f"{config.num_envs} envs each{on}); run folder {out}", file=sys.stderr, flush=True)
     write_checkpoint(out, runner, done_steps, seeds)
     if watchdog:
         watchdog.end(record=False)
     compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
     start = time.perf_counter() - wall_before
-    log = MetricsLog(out, rows, tensorboard)
+    log = MetricsLog(out, rows, tensorboard, labels=tuple(sweep))
     try:
         last = time.perf_counter()
         while done_steps < total:
@@ -116,17 +152,17 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
                 watchdog.end()
             now = time.perf_counter()
             steps = done_steps + steps_per_chunk
-            bad = non_finite(metrics, jax.device_get(next_runner.params), seeds)
+            bad = non_finite(metrics, jax.device_get(next_runner.params), names)
             if bad:  # neither this row nor its runner is written: the checkpoint stays finite
                 raise Diverged(
-                    f"training diverged in the updates up to {steps:,} agent steps per seed: "
+                    f"training diverged in the updates up to {steps:,} agent steps per member: "
                     f"{'; '.join(bad)}. {out} keeps its rows and checkpoint up to {done_steps:,} steps; "
                     "a smaller --learning-rate or --max-grad-norm may help")
-            rate = steps_per_chunk * config.num_seeds / (now - last)
+            rate = steps_per_chunk * len(batch) / (now - last)
             last = now
-            for i, seed in enumerate(seeds):
+            for i, (point, seed) in enumerate(batch):
                 values = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
-                log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start})
+                log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start}, point)
             log.flush()
             # the checkpoint always matches the last row on disk, even if the process is killed
             runner, done_steps = next_runner, steps

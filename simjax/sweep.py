@@ -1,0 +1,87 @@
+"""Command line: ``python -m simjax.sweep --env maze-very-sparse --algo sim --act-len 1,2,3,4,5``
+(``make sweep``).
+
+The flags are ``simjax.train``'s; a setting in ``SWEEPABLE`` (learning rate, discount, loss
+weights, beta, lambda, eta, SIM's H and L) may take comma-separated values. Every combination
+of them, times ``--num-seeds`` seeds, trains side by side in one run folder as one
+``jax.vmap`` inside one ``jax.jit``, compiled once: the swept values are arrays in the runner
+state, and SIM's windows are laid out for the largest H and L and masked. metrics.csv gets a
+column per swept setting; ``--resume FOLDER`` (here or in ``simjax.train``) continues a sweep.
+Bad values fail here, naming the flag, before anything compiles or is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import sys
+from pathlib import Path
+
+from simjax import flags, runtime
+from simjax.agents import make_trainer
+from simjax.novelty.settings import flag
+from simjax.runs import folder, stall
+from simjax.runs.grid import check_sweep
+from simjax.train import worker_command
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m simjax.sweep",
+        description="Train every combination of the comma-separated settings, side by side, in one compiled program.",
+    )
+    flags.add_config_flags(parser, lists=True)
+    parser.add_argument("--out", type=Path, default=None, help="run folder (default: runs/ENV-ALGO-sweep-TIME)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--tensorboard", action="store_true", help="also write TensorBoard event files")
+    parser.add_argument("--max-restarts", type=int, default=20, help="restarts after XLA stalls (default: 20)")
+    parser.add_argument("--stall-timeout", type=float, default=300.0,
+                        help="seconds the first compiled call may take before it counts as stalled (default: 300)")
+    return parser
+
+
+def parse_sweep(argv=None):
+    """(config, grid, sweep, out, args); each refusal is argparse's one-line error (exit 2)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    given = flags.given_settings(args)
+    settings, sweep = {}, {}
+    for name, values in given.items():
+        if not values:
+            parser.error(f"{flag(name)} has an empty list of values")
+        if len(values) == 1:
+            settings[name] = values[0]
+        else:
+            sweep[name] = values
+    if args.tensorboard and folder.tensorboard_available():
+        parser.error(folder.tensorboard_available())
+    try:
+        config, grid = check_sweep(settings, sweep)
+    except ValueError as err:
+        parser.error(str(err))
+    out = args.out
+    if out is None:
+        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        out = Path("runs") / f"{config.env}-{config.algo}-sweep-{stamp}"
+    if (out / "metrics.csv").exists():
+        parser.error(f"{out} already holds a run (metrics.csv); choose another --out")
+    try:  # what needs the task's env fails now, not in the worker
+        make_trainer(config)
+    except ValueError as err:
+        parser.error(str(err))
+    return config, grid, sweep, out, args
+
+
+def main(argv=None) -> int:
+    runtime.configure()
+    config, grid, sweep, out, args = parse_sweep(argv)
+    out.mkdir(parents=True, exist_ok=True)
+    folder.write_config(out, config, sweep=sweep)
+    if not args.quiet:
+        print(f"sweep: {len(grid)} points x {config.num_seeds} seed(s) = {len(grid) * config.num_seeds} members, "
+              "one compiled program", file=sys.stderr)
+    return stall.supervise(worker_command(out, args), out, args.max_restarts, args.stall_timeout)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
