@@ -33,31 +33,57 @@ YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
 
 
 # ---- melon ---------------------------------------------------------------------------------
-def test_melon_apples_pay_once_each_and_lead_to_a_dead_end():
+L, R, F = motion.TURN_LEFT, motion.TURN_RIGHT, motion.FORWARD
+
+
+def _route(*legs):
+    """Actions: (action, count) legs one after the other. Seven turn steps from rest turn
+    89.6 degrees; the small miss keeps the agent pressed to the wall it slides along."""
+    return jnp.asarray([a for a, n in legs for _ in range(n)], jnp.int32)
+
+
+def test_melon_holds_the_fruit_of_dmlab_stairway_to_melon_map():
+    # assets/maps/stairway_to_melon.map: 14 apple_reward, 1 lemon_reward, 1 watermelon_goal
+    items = make("melon").layout.items
+    look, reward, ends = (np.asarray(v) for v in (items.look, items.reward, items.ends))
+    assert (look == raycaster.APPLE).sum() == len(melon.APPLES_XY) == 14
+    assert (look == raycaster.LEMON).sum() == 1 and (look == raycaster.MELON).sum() == 1
+    assert set(reward[look == raycaster.APPLE]) == {1.0} and reward[look == raycaster.LEMON] == -1.0
+    assert reward[look == raycaster.MELON] == 20.0 and ends.tolist() == [False] * 15 + [True]
+    pos = np.asarray(items.pos)
+    # every fruit lies in the ring corridor between the block (|x|, |y| < 448) and the outer walls
+    inside = np.all(np.abs(pos) < 512, 1) & np.any(np.abs(pos) > 448, 1)
+    assert inside.all()
+    np.testing.assert_allclose(pos[-1], (-40, 480))  # the melon, on the platform past the stairs
+
+
+def test_melon_apple_route_pays_fourteen_and_ends_at_the_cliff():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    states = run(_placed(env, -120.0, 448.0, 180.0), jnp.full((60,), motion.FORWARD))
+    # east along the south side, north up the east side, west along the north side
+    states = run(_placed(env, 60.0, -480.0, 0.0), _route((F, 35), (L, 7), (F, 60), (L, 7), (F, 45)))
     reward = np.asarray(states.reward)
-    assert reward.sum() == len(melon.APPLES_XY) == 6 and set(reward[reward != 0]) == {1.0}
+    assert reward.sum() == 14 and set(reward[reward != 0]) == {1.0}
     assert np.asarray(states.done).sum() == 0  # the dead end ends nothing
-    assert np.asarray(states.pipeline_state.collected)[-1, :6].all()
-    assert not np.asarray(states.pipeline_state.collected)[-1, 6:].any()
-    assert float(states.pipeline_state.pose.pos[-1, 0]) == pytest.approx(-1024 + 16, abs=1.0)
+    collected = np.asarray(states.pipeline_state.collected)[-1]
+    assert collected[:14].all() and not collected[14:].any()  # neither the lemon nor the melon
+    x, y = np.asarray(states.pipeline_state.pose.pos[-1])
+    assert x == pytest.approx(16.0, abs=1.0) and y > 448  # stopped by the cliff under the melon
 
 
-def test_melon_lemon_costs_one_and_the_melon_ends_the_episode():
+def test_melon_lemon_route_costs_one_and_the_melon_ends_the_episode():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    lemon = run(_placed(env, 150.0, 448.0, 0.0), jnp.full((15,), motion.FORWARD))
-    assert np.asarray(lemon.reward).sum() == -1.0 and np.asarray(lemon.done).sum() == 0
-    states = run(_placed(env, 704.0, 600.0, 90.0), jnp.full((30,), motion.FORWARD))
-    done = np.asarray(states.done)
+    # west through the lemon, north up the stair corridor, east along the platform
+    states = run(_placed(env, -60.0, -480.0, 180.0), _route((F, 30), (R, 7), (F, 60), (R, 7), (F, 40)))
+    done, reward = np.asarray(states.done), np.asarray(states.reward)
     t = int(np.argmax(done))
-    assert done[t] == 1 and states.reward[t] == 20.0 and np.asarray(states.reward)[:t].sum() == 0
+    assert done[t] == 1 and reward[t] == 20.0 and reward[:t].sum() == -1.0
     assert states.metrics["episode_success"][t] == 1 and states.info["truncation"][t] == 0
-    assert states.metrics["episode_return"][t] == 20.0
-    # the next episode starts at the start, every fruit back in place
+    assert states.metrics["episode_return"][t] == 19.0
+    # the next episode starts at the start, facing north, every fruit back in place
     np.testing.assert_allclose(np.asarray(states.pipeline_state.pose.pos[t]), melon.START_XY)
+    assert float(states.pipeline_state.pose.heading[t]) == pytest.approx(math.pi / 2, abs=1e-3)
     assert not np.asarray(states.pipeline_state.collected[t]).any()
 
 
@@ -71,12 +97,12 @@ def test_melon_has_three_actions_and_525_steps():
 
 def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     env = make("melon")
-    west = motion.Pose.at(jnp.array([-120.0, 448.0]), jnp.float32(math.pi))
-    east = motion.Pose.at(jnp.array([250.0, 448.0]), jnp.float32(0.0))
-    apples, lemon = np.asarray(env.render(west)), np.asarray(env.render(east))
+    east = motion.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
+    west = motion.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
+    apples, lemon = np.asarray(env.render(east)), np.asarray(env.render(west))
     assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
     assert _count(lemon, *YELLOW) >= 4 and _count(lemon, *RED) == 0
-    gone = np.asarray(env.render(west, None, jnp.ones((env.num_items,), bool)))
+    gone = np.asarray(env.render(east, None, jnp.ones((env.num_items,), bool)))
     assert _count(gone, *RED) == 0
 
 
