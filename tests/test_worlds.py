@@ -1,5 +1,6 @@
 """The paper's other two worlds: ``melon`` (Stairway to Melon) and ``explore-goals`` (generated
-mazes), and the item sprites they use."""
+mazes: DMLab's generator and rules, and the paper's wording as ``explore-goals-paper``), and the
+item sprites they use."""
 
 import collections
 import math
@@ -9,10 +10,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import dmlab_reference
 from helpers import walk
 
-from simjax.envs import make, melon, motion, raycaster
-from simjax.envs.explore_goals import ExploreGoalsEnv, GridGraph, MazeGenerator, random_spanning_tree
+from simjax.envs import dmlab_maze, make, melon, motion, raycaster
+from simjax.envs.dmlab_maze import DMLabMazeGenerator
+from simjax.envs.explore_goals import (ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator,
+                                       random_spanning_tree)
 
 
 def _placed(env, x, y, degrees, key=0):
@@ -125,7 +129,200 @@ def test_nearer_sprites_hide_farther_ones():
     np.testing.assert_array_equal(seen([True, True])[apple], seen([False, True])[apple])
 
 
-# ---- explore-goals: generation ------------------------------------------------------------
+# ---- explore-goals: DMLab's generator ------------------------------------------------------
+def _open_components(open_grid, start):
+    """Flood fill (numpy) of a text grid's open cells from ``start``: the set reached."""
+    h, w = open_grid.shape
+    seen, todo = {start}, [start]
+    while todo:
+        r, c = todo.pop()
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            n = (r + dr, c + dc)
+            if 0 <= n[0] < h and 0 <= n[1] < w and open_grid[n] and n not in seen:
+                seen.add(n)
+                todo.append(n)
+    return seen
+
+
+@pytest.fixture(scope="module")
+def dmlab_mazes():
+    gen = DMLabMazeGenerator()
+    keys = jax.random.split(jax.random.PRNGKey(0), 300)
+    return gen, jax.tree.map(np.asarray, jax.jit(jax.vmap(gen.maze))(keys))
+
+
+def test_dmlab_generator_has_explore_goal_locations_small_settings():
+    # factories/explore/factory.lua defaults, passed to randomMazeGeneration unchanged by
+    # goal_locations_factory.lua for explore_goal_locations_small.lua
+    gen = DMLabMazeGenerator()
+    assert (gen.height, gen.width, gen.max_rooms, gen.room_min_size, gen.room_max_size) == (11, 11, 4, 3, 5)
+    assert (gen.room_spawn_count, gen.room_object_count, gen.extra_connection_prob) == (5, 4, 0.0)
+    assert gen.simplify and gen.cell_size == 100.0 and gen.decal_frequency == 0.1
+    # MakeRandomRectangle's proposals: 3x3 rooms half the time, 3x5 and 5x3 a quarter each
+    props, prob = gen.room_proposals()
+    assert prob.sum() == pytest.approx(1.0)
+    sizes = collections.defaultdict(float)
+    for (_, _, h, w), p in zip(props, prob):
+        sizes[(2 * h + 1, 2 * w + 1)] += p
+    assert dict(sizes) == pytest.approx({(3, 3): 0.5, (3, 5): 0.25, (5, 3): 0.25})
+    for name, bad in [("height", 10), ("room_max_size", 11), ("extra_connection_prob", 2.0)]:
+        with pytest.raises(ValueError, match=name):
+            DMLabMazeGenerator(**{name: bad})
+
+
+def test_dmlab_mazes_have_rooms_spawns_and_goals(dmlab_mazes):
+    gen, m = dmlab_mazes
+    counts = m["room_valid"].sum(1)
+    assert counts.min() >= 1 and counts.mean() > 3.5  # up to 4 rooms; 4 fit almost always
+    for i in range(len(counts)):
+        rooms = [m["room_rc"][i, k] for k in range(gen.max_rooms) if m["room_valid"][i, k]]
+        covered = np.zeros((11, 11), int)
+        for r, c, h, w in rooms:
+            assert (2 * h + 1, 2 * w + 1) in {(3, 3), (3, 5), (5, 3)}
+            covered[2 * r + 1:2 * (r + h) + 2, 2 * c + 1:2 * (c + w) + 2] += 1
+        assert covered.max() == 1  # rooms never overlap ...
+        np.testing.assert_array_equal(covered == 1, m["room"][i])
+        assert (m["grid"][i][m["room"][i]] == dmlab_maze.EMPTY).all()  # ... and are open all through
+        # 5 spawn points and 4 goal candidates per room, distinct cells inside the rooms
+        sp = m["spawn_cells"][i][m["spawn_valid"][i]]
+        gl = m["goal_cells"][i][m["goal_valid"][i]]
+        assert len(sp) == 5 * len(rooms) and len(gl) == 4 * len(rooms)
+        cells = [tuple(x) for x in np.concatenate([sp, gl])]
+        assert len(set(cells)) == len(cells) and all(m["room"][i][c] for c in cells)
+
+
+def test_dmlab_mazes_are_connected_without_dead_ends(dmlab_mazes):
+    _, m = dmlab_mazes
+    for i in range(len(m["grid"])):
+        is_open = m["grid"][i] == dmlab_maze.EMPTY
+        assert not is_open[0].any() and not is_open[-1].any() and not is_open[:, 0].any() and not is_open[:, -1].any()
+        goal = tuple(m["goal_cells"][i][0])
+        reached = _open_components(is_open, goal)
+        assert len(reached) == is_open.sum()  # every open cell, so every spawn and goal, connected
+        # simplified: outside rooms no open cell is a dead end
+        p = np.pad(is_open, 1)
+        nbrs = p[:-2, 1:-1].astype(int) + p[2:, 1:-1] + p[1:-1, :-2] + p[1:-1, 2:]
+        assert (nbrs[is_open & ~m["room"][i]] >= 2).all()
+
+
+@pytest.mark.parametrize("size", [11, 21])
+def test_dmlab_simplification_matches_dmlab_step_by_step(size):
+    # the vectorised dead-end and horseshoe removal against a sequential transcription of
+    # algorithm.cc (tests/dmlab_reference.py) on the same unsimplified mazes; at 21x21 almost
+    # every maze has horseshoe bends to pull
+    gen = DMLabMazeGenerator(height=size, width=size)
+    raw = jax.jit(jax.vmap(lambda k: gen.maze(k)["raw"]))(jax.random.split(jax.random.PRNGKey(size), 100))
+    got = np.asarray(jax.jit(jax.vmap(lambda g: dmlab_maze.simplify(g, size)))(raw))
+    bends = 0
+    for r, g in zip(np.asarray(raw), got):
+        rows = dmlab_maze.to_text(r).split("\n")
+        want = dmlab_reference.simplify(rows)
+        assert dmlab_maze.to_text(g).split("\n") == want
+        bends += want != ["".join(x) for x in dmlab_reference.remove_dead_ends([list(x) for x in rows])]
+    assert bends > (80 if size == 21 else -1)
+
+
+def test_dmlab_layout_walls_are_the_faces_between_open_and_walled_cells():
+    gen = DMLabMazeGenerator()
+    keys = jax.random.split(jax.random.PRNGKey(3), 10)
+    mazes = jax.jit(jax.vmap(lambda k: gen.maze(jax.random.split(k, 3)[0])))(keys)  # as generate draws it
+    layouts = jax.jit(jax.vmap(gen.generate))(keys)
+    _, side_a, side_b = gen.faces()
+    centres = gen.cell_centres()
+    for i in range(10):
+        layout = jax.tree.map(lambda x, i=i: x[i], layouts)
+        is_open = (np.asarray(mazes["grid"][i]) == dmlab_maze.EMPTY).reshape(-1)
+        standing = layout.walls.standing()
+        np.testing.assert_array_equal(standing, is_open[side_a] != is_open[side_b])
+        assert (np.asarray(layout.boxes)[~standing] > 1e8).all()  # open faces are out of reach
+        # the goal is a 'G' cell's centre; the spawn spots the 'P' cells' (missing rooms far away)
+        goals = {tuple(centres[r, c]) for (r, c), ok in zip(np.asarray(mazes["goal_cells"][i]),
+                                                             np.asarray(mazes["goal_valid"][i])) if ok}
+        assert tuple(np.asarray(layout.items.pos[0])) in goals
+        sp_ok = np.asarray(mazes["spawn_valid"][i])
+        spawns = np.asarray(layout.spawns)
+        np.testing.assert_array_equal(spawns[:, 0] < 1e8, sp_ok)
+        want = [centres[r, c] for r, c in np.asarray(mazes["spawn_cells"][i])[sp_ok]]
+        np.testing.assert_allclose(spawns[sp_ok], want)
+    looks = np.asarray(layouts.walls.texture)
+    standing = np.stack([jax.tree.map(lambda x, i=i: x[i], layouts).walls.standing() for i in range(10)])
+    assert len(np.unique(looks[standing])) > 2  # per-maze themes and decals
+
+
+# ---- explore-goals: the DMLab task ----------------------------------------------------------
+def _respawned_at_spawn_point(world, pos):
+    spawns = np.asarray(world.spawns)
+    return np.min(np.abs(spawns - np.asarray(pos)).sum(1)) < 1e-3
+
+
+def test_explore_goals_is_dmlab_by_default_and_paper_on_request():
+    dm, paper = make("explore-goals"), make("explore-goals-paper")
+    assert isinstance(dm, ExploreGoalsEnv) and isinstance(dm.generator, DMLabMazeGenerator)
+    assert isinstance(paper, ExploreGoalsPaperEnv) and isinstance(paper.generator, MazeGenerator)
+    for env in (dm, paper):
+        assert env.action_size == 3 and env.task.max_steps == 1350
+        assert float(env.layout.items.reward[0]) == 10.0 and not bool(env.layout.items.ends[0])
+
+
+def test_explore_goals_pickup_respawns_the_agent_and_keeps_the_goal():
+    env = make("explore-goals")
+    state = jax.jit(env.reset)(jax.random.PRNGKey(2))
+    ms = state.pipeline_state
+    assert _respawned_at_spawn_point(ms.world, ms.pose.pos)
+    goal = np.asarray(ms.world.items.pos)
+    step = jax.jit(env.step)
+    # the agent stepped onto the goal
+    onto = state.replace(pipeline_state=ms._replace(pose=motion.Pose.at(ms.world.items.pos[0], ms.pose.heading)))
+    after = step(onto, jnp.int32(0))
+    assert float(after.reward) == 10.0 and float(after.done) == 0.0 and float(after.pipeline_state.ep_return) == 10.0
+    new = after.pipeline_state
+    np.testing.assert_array_equal(np.asarray(new.world.items.pos), goal)  # the goal stays
+    np.testing.assert_array_equal(np.asarray(new.world.walls.v_lo), np.asarray(ms.world.walls.v_lo))  # same maze
+    assert _respawned_at_spawn_point(new.world, new.pose.pos)  # the agent moved to a spawn point
+    assert np.abs(np.asarray(new.pose.pos) - goal[0]).max() > 36  # ... off the goal
+    assert not np.asarray(new.collected).any()  # the goal is back, to be found again
+    again = step(after.replace(pipeline_state=new._replace(
+        pose=motion.Pose.at(new.world.items.pos[0], new.pose.heading))), jnp.int32(0))
+    assert float(again.reward) == 10.0 and float(again.pipeline_state.ep_return) == 20.0
+
+
+def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between():
+    env = ExploreGoalsEnv(max_steps=40)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (4, 120), p=jnp.array([0.2, 0.2, 0.6]))
+    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(jax.random.split(jax.random.PRNGKey(1), 4), actions)
+    done = np.asarray(states.done)
+    assert (done.sum(1) == 3).all() and (np.asarray(states.info["truncation"])[done > 0] == 1).all()
+    goal = np.asarray(states.pipeline_state.world.items.pos[:, :, 0])  # (4, T, 2)
+    walls = np.asarray(states.pipeline_state.world.walls.v_lo)  # (4, T, V)
+    for i in range(4):
+        ends = np.flatnonzero(done[i])
+        episodes = np.split(np.arange(120), ends + 1)[:-1]
+        for ep in episodes:
+            after_end = ep[:-1]  # the last state of an episode already holds the next one
+            assert (goal[i, after_end] == goal[i, after_end[0]]).all()
+            assert (walls[i, after_end] == walls[i, after_end[0]]).all()
+        firsts = [ep[0] for ep in episodes[1:]]
+        assert all(not (walls[i, a] == walls[i, b]).all() for a, b in zip([ends[0] - 1] + firsts[:-1], firsts))
+
+
+def test_explore_goals_agents_never_cross_a_standing_wall():
+    env = ExploreGoalsEnv(max_steps=10_000)
+    keys = jax.random.split(jax.random.PRNGKey(5), 8)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
+    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions)
+    r = env.motion_params.radius
+    for i in range(8):
+        boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
+        pos = np.asarray(states.pipeline_state.pose.pos[i])
+        overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
+                   & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
+        assert not overlap.any()
+        assert (np.abs(pos - 550) < 450).all()  # inside the maze's outer wall ring
+    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
+    assert travelled > 8 * 300 * 1.5
+
+
+# ---- explore-goals-paper: the paper's wording ---------------------------------------------
 def _components(num_cells, a, b, is_open):
     """Flood fill (numpy): the number of cells reachable from cell 0 through open edges."""
     nbrs = collections.defaultdict(list)
@@ -189,9 +386,8 @@ def test_generator_rejects_bad_settings():
         MazeGenerator(loop_prob=1.5)
 
 
-# ---- explore-goals: the task ---------------------------------------------------------------
-def test_explore_goals_new_maze_each_episode_same_maze_within():
-    env = ExploreGoalsEnv(max_steps=4)
+def test_explore_goals_paper_new_maze_each_episode_same_maze_within():
+    env = ExploreGoalsPaperEnv(max_steps=4)
     states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
     standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
     done = np.asarray(states.done)
@@ -201,8 +397,8 @@ def test_explore_goals_new_maze_each_episode_same_maze_within():
     assert not (standing[3] == standing[2]).all() and not (standing[7] == standing[3]).all()
 
 
-def test_reaching_the_goal_pays_ten_and_moves_agent_and_goal():
-    env = make("explore-goals")
+def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
+    env = make("explore-goals-paper")
     assert env.action_size == 3 and env.task.max_steps == 1350
     state = env.reset(jax.random.PRNGKey(2))
     ms = state.pipeline_state
@@ -222,8 +418,8 @@ def test_reaching_the_goal_pays_ten_and_moves_agent_and_goal():
     assert float(new.ep_return) == 10.0
 
 
-def test_explore_goals_agents_never_cross_a_standing_wall():
-    env = ExploreGoalsEnv(max_steps=10_000)
+def test_explore_goals_paper_agents_never_cross_a_standing_wall():
+    env = ExploreGoalsPaperEnv(max_steps=10_000)
     keys = jax.random.split(jax.random.PRNGKey(5), 8)
     actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
     run = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))
@@ -239,7 +435,7 @@ def test_explore_goals_agents_never_cross_a_standing_wall():
     assert travelled > 8 * 300 * 1.5  # (agents pinned in corners turn out slowly: 7-14 deg a step)
 
 
-@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3)])
+@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3), ("explore-goals-paper", 3)])
 def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
     env = make(name)
     keys = jax.random.split(jax.random.PRNGKey(0), 4)
@@ -256,7 +452,7 @@ def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
 
 
 def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
-    env = make("explore-goals")
+    env = make("explore-goals-paper")
     gen = env.generator
     keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
     old = jax.vmap(jax.vmap(lambda k: gen.generate(k, env.layout)))(keys)
@@ -275,3 +471,13 @@ def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
     chex.assert_trees_all_equal(fn(new_keys, jnp.zeros_like(done), old), old)
     # the generation stays behind a real conditional after both vmaps (not a select that always runs)
     assert "cond[" in str(jax.make_jaxpr(jax.vmap(jax.vmap(per_env)))(new_keys, done, old))
+
+
+def test_dmlab_mazes_are_generated_behind_a_conditional_under_nested_vmap():
+    env = make("explore-goals")
+    keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
+    old = jax.eval_shape(jax.vmap(jax.vmap(lambda k: env.generator.generate(k, env.layout))), keys)
+    done = jnp.array([[False, True, False], [False, False, True]])
+    one = lambda x: x[None]
+    per_env = lambda k, d, w: jax.tree.map(lambda x: x[0], env._regenerate(one(k), one(d), jax.tree.map(one, w)))
+    assert "cond[" in str(jax.make_jaxpr(jax.vmap(jax.vmap(per_env)))(keys, done, old))
