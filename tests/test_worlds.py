@@ -173,7 +173,9 @@ def test_dmlab_generator_has_explore_goal_locations_small_settings():
 def test_dmlab_mazes_have_rooms_spawns_and_goals(dmlab_mazes):
     gen, m = dmlab_mazes
     counts = m["room_valid"].sum(1)
-    assert counts.min() >= 1 and counts.mean() > 3.5  # up to 4 rooms; 4 fit almost always
+    # up to 4 rooms; rooms placed at random often leave no place for a fourth (of 2,000 mazes
+    # 71% had 4, 28% 3, 1.5% 2)
+    assert counts.min() >= 2 and counts.max() == 4 and 3.5 < counts.mean() < 3.9
     for i in range(len(counts)):
         rooms = [m["room_rc"][i, k] for k in range(gen.max_rooms) if m["room_valid"][i, k]]
         covered = np.zeros((11, 11), int)
