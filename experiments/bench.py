@@ -5,10 +5,12 @@ Measures, each as the median of several calls of one compiled program (compile t
   actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second; at 1024
   environments the same MyWayHome task drawn with the invented looks instead of the Freedoom
   textures, and ``melon`` and ``explore-goals``;
-- maze generation alone (``explore-goals``: spanning tree, loops, looks, walls and boxes), as
-  mazes per second for 9x9 and 11x11 cells, and its share of the ``explore-goals`` env's time
-  (one maze per env per 1350-step episode: the env generates only on steps where an episode
-  ends, see ``explore_goals.regenerate_where_done``);
+- maze generation alone, as mazes per second: ``explore-goals``' DMLab maze (11x11 text cells:
+  rooms, depth-first corridors, connections, dead-end and horseshoe removal, spawn and goal
+  cells, looks, walls and boxes) with its share of the ``explore-goals`` env's time (one maze
+  per env per 1350-step episode: the env generates only on steps where an episode ends, see
+  ``explore_goals.regenerate_where_done``), and ``explore-goals-paper``'s spanning-tree maze for
+  9x9 and 11x11 cells;
 - the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
   agent steps per second, with XLA's own FLOP count per agent step and the share of the
   machine's measured float32 matmul peak that gives;
@@ -79,10 +81,11 @@ def bench_env(task, num_envs: int, steps: int = 64) -> dict:
     return {"envs": num_envs, "steps_per_s": num_envs * steps / med, "compile_s": compile_s}
 
 
-def bench_maze_generation(cells: int, num: int = 1024) -> dict:
-    from simjax.envs.explore_goals import MazeGenerator
+def bench_maze_generation(cells: int | None, num: int = 1024) -> dict:
+    """``cells`` None: explore-goals' DMLab maze; else the paper variant's maze of cells x cells."""
+    from simjax.envs.explore_goals import DMLabMazeGenerator, MazeGenerator
 
-    gen = MazeGenerator(cells=cells)
+    gen = DMLabMazeGenerator() if cells is None else MazeGenerator(cells=cells)
     keys = jax.random.split(jax.random.PRNGKey(0), num)
     compile_s, med, _ = time_call(jax.vmap(gen.generate), keys)
     return {"cells": cells, "mazes_per_s": num / med, "compile_s": compile_s}
@@ -253,7 +256,7 @@ def main(argv=None) -> int:
         invented = bench_env(MazeEnv(env.layout, env.task), 1024)
     worlds = {task: bench_env(task, 1024) for task in ("melon", "explore-goals")}
     world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
-    mazes = [bench_maze_generation(c) for c in (9, 11)]
+    mazes = [bench_maze_generation(c) for c in (None, 9, 11)]
     trains = [bench_train(args.task, n) for n in (16, 32, 64)]
     novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm")]
     sweep, devices = bench_sweep(args.task), bench_devices(args.task)
@@ -297,11 +300,12 @@ def main(argv=None) -> int:
               f"{100 * r['novelty_share']:.0f}%" for r in novelties]
     lines += ["", *sweep_lines(sweep), "", *device_lines(devices)]
     per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
-    lines += ["", "Maze generation alone (`explore-goals`, 1024 mazes per call, `vmap`):", ""]
-    lines += [f"- {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
-              + (f"; one maze per 1350-step episode is {100 * (1.0 / r['mazes_per_s']) / 1350 / per_step:.2f}% "
-                 "of the `explore-goals` env's time (the env steps above include no episode end)"
-                 if r["cells"] == 9 else "")
+    lines += ["", "Maze generation alone (1024 mazes per call, `vmap`):", ""]
+    lines += [(f"- `explore-goals-paper`, {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
+               if r["cells"] is not None else
+               f"- `explore-goals`, DMLab's 11x11 maze: {r['mazes_per_s']:,.0f} mazes/s; one maze per 1350-step "
+               f"episode is {100 * (1.0 / r['mazes_per_s']) / 1350 / per_step:.2f}% of the `explore-goals` env's time "
+               "(the env steps above include no episode end)")
               for r in mazes]
     lines += [
         "",

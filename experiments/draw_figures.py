@@ -2,7 +2,7 @@
 
     python experiments/draw_figures.py
 writes docs/mywayhome_topdown.png, docs/frames.png (MyWayHome), docs/melon.png (the melon map
-and three views), docs/explore_goals.png (three generated mazes from above, each with the
+and five views), docs/explore_goals.png (three generated mazes from above, each with the
 agent's first frame) and docs/task_frames.png (one first-person frame from each task).
 """
 
@@ -65,10 +65,11 @@ def _pose(x, y, deg):
 
 
 MELON_VIEWS = [  # (caption, x, y, heading in degrees)
-    ("start, facing north", *melon.START_XY, 90.0),
-    ("junction, facing the apples", 0.0, 448.0, 180.0),
-    ("east arm, facing the lemon", 200.0, 448.0, 0.0),
-    ("round the corner: the melon", 704.0, 640.0, 90.0),
+    ("start, facing north (the block)", *melon.START_XY, 90.0),
+    ("turned east: 14 apples", 40.0, -480.0, 0.0),
+    ("turned west: the lemon, the stairs", -40.0, -480.0, 180.0),
+    ("up the stairs: the melon", -480.0, 480.0, 0.0),
+    ("the apples' end: the cliff", 300.0, 480.0, 180.0),
 ]
 
 
@@ -93,8 +94,9 @@ def draw_explore_goals(seeds=(0, 1, 2)):
         state = jax.jit(env.reset)(jax.random.PRNGKey(seed))
         ms = state.pipeline_state
         x, y = (float(v) for v in ms.pose.pos)
-        draw_topdown(ms.world, ax=axes[0, col], pose=(x, y, float(ms.pose.heading)), spawns=False,
-                     title=f"explore-goals, key {seed}")
+        world = ms.world._replace(spawns=ms.world.spawns[ms.world.spawns[:, 0] < 1e8])  # the rooms' 'P' cells
+        draw_topdown(world, ax=axes[0, col], pose=(x, y, float(ms.pose.heading)),
+                     title=f"explore-goals (DMLab's maze), key {seed}")
         if col < len(seeds) - 1:
             axes[0, col].get_legend().remove()
         axes[1, col].imshow(state.obs, interpolation="nearest")

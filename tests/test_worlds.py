@@ -1,5 +1,6 @@
 """The paper's other two worlds: ``melon`` (Stairway to Melon) and ``explore-goals`` (generated
-mazes), and the item sprites they use."""
+mazes: DMLab's generator and rules, and the paper's wording as ``explore-goals-paper``), and the
+item sprites they use."""
 
 import collections
 import math
@@ -9,10 +10,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import dmlab_reference
 from helpers import walk
 
-from simjax.envs import make, melon, motion, raycaster
-from simjax.envs.explore_goals import ExploreGoalsEnv, GridGraph, MazeGenerator, random_spanning_tree
+from simjax.envs import dmlab_maze, make, melon, motion, raycaster
+from simjax.envs.dmlab_maze import DMLabMazeGenerator
+from simjax.envs.explore_goals import (ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator,
+                                       random_spanning_tree)
 
 
 def _placed(env, x, y, degrees, key=0):
@@ -33,31 +37,57 @@ YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
 
 
 # ---- melon ---------------------------------------------------------------------------------
-def test_melon_apples_pay_once_each_and_lead_to_a_dead_end():
+L, R, F = motion.TURN_LEFT, motion.TURN_RIGHT, motion.FORWARD
+
+
+def _route(*legs):
+    """Actions: (action, count) legs one after the other. Seven turn steps from rest turn
+    89.6 degrees; the small miss keeps the agent pressed to the wall it slides along."""
+    return jnp.asarray([a for a, n in legs for _ in range(n)], jnp.int32)
+
+
+def test_melon_holds_the_fruit_of_dmlab_stairway_to_melon_map():
+    # assets/maps/stairway_to_melon.map: 14 apple_reward, 1 lemon_reward, 1 watermelon_goal
+    items = make("melon").layout.items
+    look, reward, ends = (np.asarray(v) for v in (items.look, items.reward, items.ends))
+    assert (look == raycaster.APPLE).sum() == len(melon.APPLES_XY) == 14
+    assert (look == raycaster.LEMON).sum() == 1 and (look == raycaster.MELON).sum() == 1
+    assert set(reward[look == raycaster.APPLE]) == {1.0} and reward[look == raycaster.LEMON] == -1.0
+    assert reward[look == raycaster.MELON] == 20.0 and ends.tolist() == [False] * 15 + [True]
+    pos = np.asarray(items.pos)
+    # every fruit lies in the ring corridor between the block (|x|, |y| < 448) and the outer walls
+    inside = np.all(np.abs(pos) < 512, 1) & np.any(np.abs(pos) > 448, 1)
+    assert inside.all()
+    np.testing.assert_allclose(pos[-1], (-40, 480))  # the melon, on the platform past the stairs
+
+
+def test_melon_apple_route_pays_fourteen_and_ends_at_the_cliff():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    states = run(_placed(env, -120.0, 448.0, 180.0), jnp.full((60,), motion.FORWARD))
+    # east along the south side, north up the east side, west along the north side
+    states = run(_placed(env, 60.0, -480.0, 0.0), _route((F, 35), (L, 7), (F, 60), (L, 7), (F, 45)))
     reward = np.asarray(states.reward)
-    assert reward.sum() == len(melon.APPLES_XY) == 6 and set(reward[reward != 0]) == {1.0}
+    assert reward.sum() == 14 and set(reward[reward != 0]) == {1.0}
     assert np.asarray(states.done).sum() == 0  # the dead end ends nothing
-    assert np.asarray(states.pipeline_state.collected)[-1, :6].all()
-    assert not np.asarray(states.pipeline_state.collected)[-1, 6:].any()
-    assert float(states.pipeline_state.pose.pos[-1, 0]) == pytest.approx(-1024 + 16, abs=1.0)
+    collected = np.asarray(states.pipeline_state.collected)[-1]
+    assert collected[:14].all() and not collected[14:].any()  # neither the lemon nor the melon
+    x, y = np.asarray(states.pipeline_state.pose.pos[-1])
+    assert x == pytest.approx(16.0, abs=1.0) and y > 448  # stopped by the cliff under the melon
 
 
-def test_melon_lemon_costs_one_and_the_melon_ends_the_episode():
+def test_melon_lemon_route_costs_one_and_the_melon_ends_the_episode():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    lemon = run(_placed(env, 150.0, 448.0, 0.0), jnp.full((15,), motion.FORWARD))
-    assert np.asarray(lemon.reward).sum() == -1.0 and np.asarray(lemon.done).sum() == 0
-    states = run(_placed(env, 704.0, 600.0, 90.0), jnp.full((30,), motion.FORWARD))
-    done = np.asarray(states.done)
+    # west through the lemon, north up the stair corridor, east along the platform
+    states = run(_placed(env, -60.0, -480.0, 180.0), _route((F, 30), (R, 7), (F, 60), (R, 7), (F, 40)))
+    done, reward = np.asarray(states.done), np.asarray(states.reward)
     t = int(np.argmax(done))
-    assert done[t] == 1 and states.reward[t] == 20.0 and np.asarray(states.reward)[:t].sum() == 0
+    assert done[t] == 1 and reward[t] == 20.0 and reward[:t].sum() == -1.0
     assert states.metrics["episode_success"][t] == 1 and states.info["truncation"][t] == 0
-    assert states.metrics["episode_return"][t] == 20.0
-    # the next episode starts at the start, every fruit back in place
+    assert states.metrics["episode_return"][t] == 19.0
+    # the next episode starts at the start, facing north, every fruit back in place
     np.testing.assert_allclose(np.asarray(states.pipeline_state.pose.pos[t]), melon.START_XY)
+    assert float(states.pipeline_state.pose.heading[t]) == pytest.approx(math.pi / 2, abs=1e-3)
     assert not np.asarray(states.pipeline_state.collected[t]).any()
 
 
@@ -71,12 +101,12 @@ def test_melon_has_three_actions_and_525_steps():
 
 def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     env = make("melon")
-    west = motion.Pose.at(jnp.array([-120.0, 448.0]), jnp.float32(math.pi))
-    east = motion.Pose.at(jnp.array([250.0, 448.0]), jnp.float32(0.0))
-    apples, lemon = np.asarray(env.render(west)), np.asarray(env.render(east))
+    east = motion.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
+    west = motion.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
+    apples, lemon = np.asarray(env.render(east)), np.asarray(env.render(west))
     assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
     assert _count(lemon, *YELLOW) >= 4 and _count(lemon, *RED) == 0
-    gone = np.asarray(env.render(west, None, jnp.ones((env.num_items,), bool)))
+    gone = np.asarray(env.render(east, None, jnp.ones((env.num_items,), bool)))
     assert _count(gone, *RED) == 0
 
 
@@ -99,7 +129,202 @@ def test_nearer_sprites_hide_farther_ones():
     np.testing.assert_array_equal(seen([True, True])[apple], seen([False, True])[apple])
 
 
-# ---- explore-goals: generation ------------------------------------------------------------
+# ---- explore-goals: DMLab's generator ------------------------------------------------------
+def _open_components(open_grid, start):
+    """Flood fill (numpy) of a text grid's open cells from ``start``: the set reached."""
+    h, w = open_grid.shape
+    seen, todo = {start}, [start]
+    while todo:
+        r, c = todo.pop()
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            n = (r + dr, c + dc)
+            if 0 <= n[0] < h and 0 <= n[1] < w and open_grid[n] and n not in seen:
+                seen.add(n)
+                todo.append(n)
+    return seen
+
+
+@pytest.fixture(scope="module")
+def dmlab_mazes():
+    gen = DMLabMazeGenerator()
+    keys = jax.random.split(jax.random.PRNGKey(0), 300)
+    return gen, jax.tree.map(np.asarray, jax.jit(jax.vmap(gen.maze))(keys))
+
+
+def test_dmlab_generator_has_explore_goal_locations_small_settings():
+    # factories/explore/factory.lua defaults, passed to randomMazeGeneration unchanged by
+    # goal_locations_factory.lua for explore_goal_locations_small.lua
+    gen = DMLabMazeGenerator()
+    assert (gen.height, gen.width, gen.max_rooms, gen.room_min_size, gen.room_max_size) == (11, 11, 4, 3, 5)
+    assert (gen.room_spawn_count, gen.room_object_count, gen.extra_connection_prob) == (5, 4, 0.0)
+    assert gen.simplify and gen.cell_size == 100.0 and gen.decal_frequency == 0.1
+    # MakeRandomRectangle's proposals: 3x3 rooms half the time, 3x5 and 5x3 a quarter each
+    props, prob = gen.room_proposals()
+    assert prob.sum() == pytest.approx(1.0)
+    sizes = collections.defaultdict(float)
+    for (_, _, h, w), p in zip(props, prob):
+        sizes[(2 * h + 1, 2 * w + 1)] += p
+    assert dict(sizes) == pytest.approx({(3, 3): 0.5, (3, 5): 0.25, (5, 3): 0.25})
+    for name, bad in [("height", 10), ("room_max_size", 11), ("extra_connection_prob", 2.0)]:
+        with pytest.raises(ValueError, match=name):
+            DMLabMazeGenerator(**{name: bad})
+
+
+def test_dmlab_mazes_have_rooms_spawns_and_goals(dmlab_mazes):
+    gen, m = dmlab_mazes
+    counts = m["room_valid"].sum(1)
+    # up to 4 rooms; rooms placed at random often leave no place for a fourth (of 2,000 mazes
+    # 71% had 4, 28% 3, 1.5% 2)
+    assert counts.min() >= 2 and counts.max() == 4 and 3.5 < counts.mean() < 3.9
+    for i in range(len(counts)):
+        rooms = [m["room_rc"][i, k] for k in range(gen.max_rooms) if m["room_valid"][i, k]]
+        covered = np.zeros((11, 11), int)
+        for r, c, h, w in rooms:
+            assert (2 * h + 1, 2 * w + 1) in {(3, 3), (3, 5), (5, 3)}
+            covered[2 * r + 1:2 * (r + h) + 2, 2 * c + 1:2 * (c + w) + 2] += 1
+        assert covered.max() == 1  # rooms never overlap ...
+        np.testing.assert_array_equal(covered == 1, m["room"][i])
+        assert (m["grid"][i][m["room"][i]] == dmlab_maze.EMPTY).all()  # ... and are open all through
+        # 5 spawn points and 4 goal candidates per room, distinct cells inside the rooms
+        sp = m["spawn_cells"][i][m["spawn_valid"][i]]
+        gl = m["goal_cells"][i][m["goal_valid"][i]]
+        assert len(sp) == 5 * len(rooms) and len(gl) == 4 * len(rooms)
+        cells = [tuple(x) for x in np.concatenate([sp, gl])]
+        assert len(set(cells)) == len(cells) and all(m["room"][i][c] for c in cells)
+
+
+def test_dmlab_mazes_are_connected_without_dead_ends(dmlab_mazes):
+    _, m = dmlab_mazes
+    for i in range(len(m["grid"])):
+        is_open = m["grid"][i] == dmlab_maze.EMPTY
+        assert not is_open[0].any() and not is_open[-1].any() and not is_open[:, 0].any() and not is_open[:, -1].any()
+        goal = tuple(m["goal_cells"][i][0])
+        reached = _open_components(is_open, goal)
+        assert len(reached) == is_open.sum()  # every open cell, so every spawn and goal, connected
+        # simplified: outside rooms no open cell is a dead end
+        p = np.pad(is_open, 1)
+        nbrs = p[:-2, 1:-1].astype(int) + p[2:, 1:-1] + p[1:-1, :-2] + p[1:-1, 2:]
+        assert (nbrs[is_open & ~m["room"][i]] >= 2).all()
+
+
+@pytest.mark.parametrize("size", [11, 21])
+def test_dmlab_simplification_matches_dmlab_step_by_step(size):
+    # the vectorised dead-end and horseshoe removal against a sequential transcription of
+    # algorithm.cc (tests/dmlab_reference.py) on the same unsimplified mazes; at 21x21 almost
+    # every maze has horseshoe bends to pull
+    gen = DMLabMazeGenerator(height=size, width=size)
+    raw = jax.jit(jax.vmap(lambda k: gen.maze(k)["raw"]))(jax.random.split(jax.random.PRNGKey(size), 100))
+    got = np.asarray(jax.jit(jax.vmap(lambda g: dmlab_maze.simplify(g, size)))(raw))
+    bends = 0
+    for r, g in zip(np.asarray(raw), got):
+        rows = dmlab_maze.to_text(r).split("\n")
+        want = dmlab_reference.simplify(rows)
+        assert dmlab_maze.to_text(g).split("\n") == want
+        bends += want != ["".join(x) for x in dmlab_reference.remove_dead_ends([list(x) for x in rows])]
+    assert bends > (80 if size == 21 else -1)
+
+
+def test_dmlab_layout_walls_are_the_faces_between_open_and_walled_cells():
+    gen = DMLabMazeGenerator()
+    keys = jax.random.split(jax.random.PRNGKey(3), 10)
+    mazes = jax.jit(jax.vmap(lambda k: gen.maze(jax.random.split(k, 3)[0])))(keys)  # as generate draws it
+    layouts = jax.jit(jax.vmap(gen.generate))(keys)
+    _, side_a, side_b = gen.faces()
+    centres = gen.cell_centres()
+    for i in range(10):
+        layout = jax.tree.map(lambda x, i=i: x[i], layouts)
+        is_open = (np.asarray(mazes["grid"][i]) == dmlab_maze.EMPTY).reshape(-1)
+        standing = layout.walls.standing()
+        np.testing.assert_array_equal(standing, is_open[side_a] != is_open[side_b])
+        assert (np.asarray(layout.boxes)[~standing] > 1e8).all()  # open faces are out of reach
+        # the goal is a 'G' cell's centre; the spawn spots the 'P' cells' (missing rooms far away)
+        goals = {tuple(centres[r, c]) for (r, c), ok in zip(np.asarray(mazes["goal_cells"][i]),
+                                                             np.asarray(mazes["goal_valid"][i])) if ok}
+        assert tuple(np.asarray(layout.items.pos[0])) in goals
+        sp_ok = np.asarray(mazes["spawn_valid"][i])
+        spawns = np.asarray(layout.spawns)
+        np.testing.assert_array_equal(spawns[:, 0] < 1e8, sp_ok)
+        want = [centres[r, c] for r, c in np.asarray(mazes["spawn_cells"][i])[sp_ok]]
+        np.testing.assert_allclose(spawns[sp_ok], want)
+    looks = np.asarray(layouts.walls.texture)
+    standing = np.stack([jax.tree.map(lambda x, i=i: x[i], layouts).walls.standing() for i in range(10)])
+    assert len(np.unique(looks[standing])) > 2  # per-maze themes and decals
+
+
+# ---- explore-goals: the DMLab task ----------------------------------------------------------
+def _respawned_at_spawn_point(world, pos):
+    spawns = np.asarray(world.spawns)
+    return np.min(np.abs(spawns - np.asarray(pos)).sum(1)) < 1e-3
+
+
+def test_explore_goals_is_dmlab_by_default_and_paper_on_request():
+    dm, paper = make("explore-goals"), make("explore-goals-paper")
+    assert isinstance(dm, ExploreGoalsEnv) and isinstance(dm.generator, DMLabMazeGenerator)
+    assert isinstance(paper, ExploreGoalsPaperEnv) and isinstance(paper.generator, MazeGenerator)
+    for env in (dm, paper):
+        assert env.action_size == 3 and env.task.max_steps == 1350
+        assert float(env.layout.items.reward[0]) == 10.0 and not bool(env.layout.items.ends[0])
+
+
+def test_explore_goals_pickup_respawns_the_agent_and_keeps_the_goal():
+    env = make("explore-goals")
+    state = jax.jit(env.reset)(jax.random.PRNGKey(2))
+    ms = state.pipeline_state
+    assert _respawned_at_spawn_point(ms.world, ms.pose.pos)
+    goal = np.asarray(ms.world.items.pos)
+    step = jax.jit(env.step)
+    # the agent stepped onto the goal
+    onto = state.replace(pipeline_state=ms._replace(pose=motion.Pose.at(ms.world.items.pos[0], ms.pose.heading)))
+    after = step(onto, jnp.int32(0))
+    assert float(after.reward) == 10.0 and float(after.done) == 0.0 and float(after.pipeline_state.ep_return) == 10.0
+    new = after.pipeline_state
+    np.testing.assert_array_equal(np.asarray(new.world.items.pos), goal)  # the goal stays
+    np.testing.assert_array_equal(np.asarray(new.world.walls.v_lo), np.asarray(ms.world.walls.v_lo))  # same maze
+    assert _respawned_at_spawn_point(new.world, new.pose.pos)  # the agent moved to a spawn point
+    assert np.abs(np.asarray(new.pose.pos) - goal[0]).max() > 36  # ... off the goal
+    assert not np.asarray(new.collected).any()  # the goal is back, to be found again
+    again = step(after.replace(pipeline_state=new._replace(
+        pose=motion.Pose.at(new.world.items.pos[0], new.pose.heading))), jnp.int32(0))
+    assert float(again.reward) == 10.0 and float(again.pipeline_state.ep_return) == 20.0
+
+
+def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between():
+    env = ExploreGoalsEnv(max_steps=40)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (4, 120), p=jnp.array([0.2, 0.2, 0.6]))
+    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(jax.random.split(jax.random.PRNGKey(1), 4), actions)
+    done = np.asarray(states.done)
+    assert (done.sum(1) == 3).all() and (np.asarray(states.info["truncation"])[done > 0] == 1).all()
+    goal = np.asarray(states.pipeline_state.world.items.pos[:, :, 0])  # (4, T, 2)
+    walls = np.asarray(states.pipeline_state.world.walls.v_lo)  # (4, T, V)
+    for i in range(4):
+        ends = np.flatnonzero(done[i])
+        episodes = np.split(np.arange(120), ends + 1)[:-1]
+        for ep in episodes:
+            after_end = ep[:-1]  # the last state of an episode already holds the next one
+            assert (goal[i, after_end] == goal[i, after_end[0]]).all()
+            assert (walls[i, after_end] == walls[i, after_end[0]]).all()
+        firsts = [ep[0] for ep in episodes[1:]]
+        assert all(not (walls[i, a] == walls[i, b]).all() for a, b in zip([ends[0] - 1] + firsts[:-1], firsts))
+
+
+def test_explore_goals_agents_never_cross_a_standing_wall():
+    env = ExploreGoalsEnv(max_steps=10_000)
+    keys = jax.random.split(jax.random.PRNGKey(5), 8)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
+    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions)
+    r = env.motion_params.radius
+    for i in range(8):
+        boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
+        pos = np.asarray(states.pipeline_state.pose.pos[i])
+        overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
+                   & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
+        assert not overlap.any()
+        assert (np.abs(pos - 550) < 450).all()  # inside the maze's outer wall ring
+    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
+    assert travelled > 8 * 300 * 1.5
+
+
+# ---- explore-goals-paper: the paper's wording ---------------------------------------------
 def _components(num_cells, a, b, is_open):
     """Flood fill (numpy): the number of cells reachable from cell 0 through open edges."""
     nbrs = collections.defaultdict(list)
@@ -163,9 +388,8 @@ def test_generator_rejects_bad_settings():
         MazeGenerator(loop_prob=1.5)
 
 
-# ---- explore-goals: the task ---------------------------------------------------------------
-def test_explore_goals_new_maze_each_episode_same_maze_within():
-    env = ExploreGoalsEnv(max_steps=4)
+def test_explore_goals_paper_new_maze_each_episode_same_maze_within():
+    env = ExploreGoalsPaperEnv(max_steps=4)
     states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
     standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
     done = np.asarray(states.done)
@@ -175,8 +399,8 @@ def test_explore_goals_new_maze_each_episode_same_maze_within():
     assert not (standing[3] == standing[2]).all() and not (standing[7] == standing[3]).all()
 
 
-def test_reaching_the_goal_pays_ten_and_moves_agent_and_goal():
-    env = make("explore-goals")
+def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
+    env = make("explore-goals-paper")
     assert env.action_size == 3 and env.task.max_steps == 1350
     state = env.reset(jax.random.PRNGKey(2))
     ms = state.pipeline_state
@@ -196,8 +420,8 @@ def test_reaching_the_goal_pays_ten_and_moves_agent_and_goal():
     assert float(new.ep_return) == 10.0
 
 
-def test_explore_goals_agents_never_cross_a_standing_wall():
-    env = ExploreGoalsEnv(max_steps=10_000)
+def test_explore_goals_paper_agents_never_cross_a_standing_wall():
+    env = ExploreGoalsPaperEnv(max_steps=10_000)
     keys = jax.random.split(jax.random.PRNGKey(5), 8)
     actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
     run = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))
@@ -213,7 +437,7 @@ def test_explore_goals_agents_never_cross_a_standing_wall():
     assert travelled > 8 * 300 * 1.5  # (agents pinned in corners turn out slowly: 7-14 deg a step)
 
 
-@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3)])
+@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3), ("explore-goals-paper", 3)])
 def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
     env = make(name)
     keys = jax.random.split(jax.random.PRNGKey(0), 4)
@@ -230,7 +454,7 @@ def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
 
 
 def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
-    env = make("explore-goals")
+    env = make("explore-goals-paper")
     gen = env.generator
     keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
     old = jax.vmap(jax.vmap(lambda k: gen.generate(k, env.layout)))(keys)
@@ -249,3 +473,13 @@ def test_mazes_are_regenerated_only_where_done_under_nested_vmap():
     chex.assert_trees_all_equal(fn(new_keys, jnp.zeros_like(done), old), old)
     # the generation stays behind a real conditional after both vmaps (not a select that always runs)
     assert "cond[" in str(jax.make_jaxpr(jax.vmap(jax.vmap(per_env)))(new_keys, done, old))
+
+
+def test_dmlab_mazes_are_generated_behind_a_conditional_under_nested_vmap():
+    env = make("explore-goals")
+    keys = jax.random.split(jax.random.PRNGKey(4), 6).reshape(2, 3, 2)
+    old = jax.eval_shape(jax.vmap(jax.vmap(lambda k: env.generator.generate(k, env.layout))), keys)
+    done = jnp.array([[False, True, False], [False, False, True]])
+    one = lambda x: x[None]
+    per_env = lambda k, d, w: jax.tree.map(lambda x: x[0], env._regenerate(one(k), one(d), jax.tree.map(one, w)))
+    assert "cond[" in str(jax.make_jaxpr(jax.vmap(jax.vmap(per_env)))(keys, done, old))

@@ -11,8 +11,12 @@ MyWayHome (paper section 3.1, appendix B.1; spawn choices recorded in the README
 The paper's other two worlds (``simjax.envs.melon``, ``simjax.envs.explore_goals``):
 - ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
   melon (+20, success); 525 steps, 3 actions;
-- ``explore-goals``: Explore Goal Locations Small, a new generated maze every episode, +10 per
-  goal reached, then a new start and goal; 1350 steps, 3 actions.
+- ``explore-goals``: Explore Goal Locations Small as DeepMind Lab's level scripts have it: a new
+  11x11 maze with up to 4 rooms every episode (DMLab's generator, ``simjax.envs.dmlab_maze``),
+  the goal fixed for the episode in a room, +10 per goal reached, then the agent alone
+  respawns at a room's spawn point; 1350 steps, 3 actions;
+- ``explore-goals-paper``: the paper's wording of it: a 9x9 maze without rooms, a new start and
+  a new goal after each pickup; 1350 steps, 3 actions.
 
 Any gymnax environment: ``gymnax:NAME`` (``simjax.envs.gymnax_adapter``), e.g.
 ``gymnax:CartPole-v1`` or ``gymnax:Breakout-MinAtar``.
@@ -28,7 +32,7 @@ from collections.abc import Callable
 
 from simjax.envs import mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
-from simjax.envs.explore_goals import ExploreGoalsEnv
+from simjax.envs.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
 from simjax.envs.melon import MELON_TASK, melon_layout
 
@@ -67,6 +71,7 @@ _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
     "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
     "explore-goals": ExploreGoalsEnv,
+    "explore-goals-paper": ExploreGoalsPaperEnv,
 }
 
 TASK_NAMES = tuple(_REGISTRY)
@@ -95,6 +100,6 @@ def make(name: str):
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv",
+__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv", "ExploreGoalsPaperEnv",
            "mywayhome_layout", "tiny_layout", "melon_layout", "random_walks", "rollout", "given_actions",
            "starts_episode", "episode_metrics", "uniform_policy"]

@@ -1,17 +1,40 @@
 """``explore-goals``: a new maze every episode, after DMLab's Explore Goal Locations Small
-(paper section 3.4, appendix D).
+(paper section 3.4, appendix D), with DMLab's own rules by default and the paper's wording as
+``explore-goals-paper``.
 
-Each episode ``reset`` generates, in JAX, a maze on a grid of ``cells`` x ``cells`` square
-cells (``cell_size`` Doom units each): a uniformly random spanning tree of the grid graph (all
-cells connected, no loops), then each remaining interior wall knocked out with probability
-``loop_prob`` so there are loops. Every wall gets a random look of the raycaster's twelve, so
-places can be told apart. The goal (the vest) stands in the middle of a random cell; touching it
-gives +10 and moves the agent to a random cell and the goal to another, in the same maze. An
-episode lasts 1350 agent steps with no early end (a truncation); 3 actions {turn left, turn
-right, forward}. ``episode_success`` is 1 for an episode that reached at least one goal.
+``explore-goals`` (``ExploreGoalsEnv``) follows DeepMind Lab's level scripts
+(google-deepmind/lab; read, not copied):
 
-The spanning tree is the minimum spanning tree of random edge weights, which is what
-randomised Kruskal builds, computed with Boruvka's rounds instead of Kruskal's edge-by-edge
+- the map: ``levels/contributed/dmlab30/explore_goal_locations_small.lua`` calls
+  ``factories/explore/goal_locations_factory.lua`` with no options, which calls
+  ``factories/explore/factory.lua``: each episode ``maze_generation.randomMazeGeneration`` draws
+  an 11x11 text maze with up to 4 rooms (3 to 5 cells a side), corridors carved around them, one
+  connection between every two touching regions, dead ends removed, 5 spawn points 'P' and 4
+  goal candidates 'G' per room (``simjax.envs.dmlab_maze`` has each value and its source);
+- the goal (goal_locations_factory.lua ``level:start``): one 'G' cell drawn uniformly once per
+  episode; it stays there all episode;
+- the start and every restart (``level:restart``): a uniformly drawn 'P' cell reachable from
+  the goal (every 'P': the maze is connected); a random heading;
+- the reward: the goal pickup is ``pickups.defaults.goal``, 10 points, type GOAL
+  (``common/pickups.lua``); a GOAL pickup "changes the agent's score and causes the current
+  level to restart" (``docs/developers/reference/lua_api.md``), and the factory's ``nextMap``
+  keeps the same map (quickRestart), so the agent alone moves to a new spawn point and the goal
+  comes back where it was; the episode goes on;
+- the length: ``episodeLengthSeconds`` 90 (factory.lua default; "an episode (one run with
+  potentially many level restarts) ends after this many seconds", ``docs/levels.md``): 90 s at
+  DMLab's 60 frames/s with 4 frames per agent step is 1350 agent steps, the paper's number.
+
+``explore-goals-paper`` (``ExploreGoalsPaperEnv``) is the paper's wording (section 3.3): a 9x9
+grid of 128-unit cells (a random spanning tree, then each remaining interior wall knocked out
+with probability ``loop_prob``, every wall a random look of the raycaster's twelve), no rooms,
+the goal in a random cell, and after each pickup both the agent and the goal move to new random
+cells. Same length and reward.
+
+Both: 3 actions {turn left, turn right, forward}; no early end (the time limit is a
+truncation); ``episode_success`` is 1 for an episode that reached at least one goal.
+
+The paper variant's spanning tree is the minimum spanning tree of random edge weights, which is
+what randomised Kruskal builds, computed with Boruvka's rounds instead of Kruskal's edge-by-edge
 loop: each round every component picks its lightest edge out and the components merge
 (pointer jumping), so there are ``ceil(log2(cells^2))`` vectorised rounds and no data-dependent
 loop.
@@ -34,6 +57,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from simjax.envs import motion, raycaster
+from simjax.envs.dmlab_maze import DMLabMazeGenerator
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
 
 _FAR = 1e9
@@ -88,7 +112,7 @@ def random_spanning_tree(key: jax.Array, graph: GridGraph) -> jnp.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class MazeGenerator:
-    """Mazes as raycaster layouts: the wall rows are fixed (every interior edge, then the outer
+    """The paper variant's mazes (``explore-goals-paper``) as raycaster layouts: the wall rows are fixed (every interior edge, then the outer
     boundary); a maze is which of them are open, and the looks of the closed ones."""
 
     cells: int = 9
@@ -160,8 +184,9 @@ class MazeGenerator:
         return template._replace(walls=walls, boxes=boxes)
 
 
-def regenerate_where_done(generator: MazeGenerator, template: Layout):
-    """``fn(keys (B, 2), done (B,), old (Layout, leading axis B)) -> Layout``: a new maze from
+def regenerate_where_done(generator, template: Layout):
+    """For a ``generator`` with ``generate(key, template) -> Layout`` (``MazeGenerator``,
+    ``DMLabMazeGenerator``): ``fn(keys (B, 2), done (B,), old (Layout, leading axis B)) -> Layout``, a new maze from
     ``keys[i]`` where ``done[i]``, else ``old[i]``; the mazes are generated only if any is done,
     also under any number of ``vmap`` levels (they are folded into B)."""
 
@@ -188,14 +213,15 @@ def regenerate_where_done(generator: MazeGenerator, template: Layout):
     return fn
 
 
-class ExploreGoalsEnv(MazeEnv):
-    """Explore Goal Locations on generated mazes; ``MazeState.world`` holds the episode's maze."""
+class ExploreGoalsPaperEnv(MazeEnv):
+    """``explore-goals-paper``: the paper's wording of Explore Goal Locations (no rooms, a new
+    goal after each pickup); ``MazeState.world`` holds the episode's maze."""
 
     def __init__(self, generator: MazeGenerator = MazeGenerator(), max_steps: int = 1350,
                  goal_reward: float = 10.0, **kwargs):
         self.generator = generator
         self.goal_reward = goal_reward
-        task = MazeTask("explore-goals", random_heading=True, max_steps=max_steps, num_actions=3)
+        task = MazeTask("explore-goals-paper", random_heading=True, max_steps=max_steps, num_actions=3)
         template = generator.template()
         # the goal pays ``goal_reward`` and does not end the episode
         items = template.items._replace(reward=jnp.full((1,), goal_reward), ends=jnp.zeros((1,), bool))
@@ -238,4 +264,54 @@ class ExploreGoalsEnv(MazeEnv):
         return ep_return > 0
 
 
-__all__ = ["ExploreGoalsEnv", "MazeGenerator", "GridGraph", "random_spanning_tree"]
+class ExploreGoalsEnv(MazeEnv):
+    """``explore-goals``: Explore Goal Locations Small with DMLab's map and rules (module
+    docstring). ``MazeState.world`` holds the episode's maze; its ``items`` the goal, its
+    ``spawns`` the 'P' cells (slots of rooms the maze does not have sit at 1e9)."""
+
+    def __init__(self, generator: DMLabMazeGenerator = DMLabMazeGenerator(), max_steps: int = 1350,
+                 goal_reward: float = 10.0, **kwargs):
+        self.generator = generator
+        self.goal_reward = goal_reward
+        task = MazeTask("explore-goals", random_heading=True, max_steps=max_steps, num_actions=3)
+        template = generator.template()
+        # the goal pays ``goal_reward`` (pickups.lua: goal, 10) and restarts the level, not the episode
+        items = template.items._replace(reward=jnp.full((1,), goal_reward), ends=jnp.zeros((1,), bool))
+        template = template._replace(items=items)
+        super().__init__(template, task, **kwargs)
+        self._regenerate = regenerate_where_done(generator, template)
+
+    def _respawn(self, key, world: Layout) -> motion.Pose:
+        """A uniformly drawn spawn point ('P') of the maze, a uniformly random heading."""
+        k_spot, k_head = jax.random.split(key)
+        valid = world.spawns[:, 0] < _FAR / 2
+        spot = jax.random.categorical(k_spot, jnp.where(valid, 0.0, -jnp.inf))
+        heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
+        return motion.Pose.at(world.spawns[spot], heading)
+
+    def _start(self, key):
+        k_maze, k_spawn = jax.random.split(key)
+        world = self.generator.generate(k_maze, self.layout)
+        return self._respawn(k_spawn, world), world
+
+    def _restart(self, key, done, pose, world):
+        k_maze, k_spawn = jax.random.split(key)
+        one = lambda x: x[None]
+        maze = jax.tree.map(lambda x: x[0], self._regenerate(one(k_maze), one(done), jax.tree.map(one, world)))
+        fresh = self._respawn(k_spawn, maze)
+        pose = jax.tree.map(lambda n, o: jnp.where(done, n, o), fresh, pose)
+        return pose, maze
+
+    def _on_touch(self, key, pose, world, collected):
+        # the goal was touched: the level restarts, the agent alone moves to a spawn point and
+        # the goal is back in its place
+        hit = collected[0]
+        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._respawn(key, world), pose)
+        return pose, world, jnp.zeros_like(collected)
+
+    def _success(self, reached, ep_return):
+        return ep_return > 0
+
+
+__all__ = ["ExploreGoalsEnv", "ExploreGoalsPaperEnv", "MazeGenerator", "DMLabMazeGenerator", "GridGraph",
+           "random_spanning_tree"]

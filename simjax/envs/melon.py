@@ -1,21 +1,41 @@
 """``melon``: reward distraction, after DMLab's Stairway to Melon (paper section 3.3, appendix C).
 
-From the start room a corridor leads north to a junction. West: a row of six apples (+1 each,
-once per episode) and a dead end. East: a lemon (-1, once) and, round a corner to the north,
-out of sight from the junction, the melon (+20; success, the episode ends). 525 agent steps,
-3 actions {turn left, turn right, forward}. The apples pay at once; the melon pays 20 for
-walking past a penalty and round a corner, which a myopic or apple-greedy policy never does.
+The map is DeepMind Lab's ``assets/maps/stairway_to_melon.map`` (google-deepmind/lab; read, not
+copied), made flat, in its own coordinates (one DMLab unit is one unit here; DMLab's player
+box is 30 wide, ours 32):
 
-Geometry in Doom units (corridors 128 wide), y up::
+- Outer walls enclose the square x, y in [-512, 512] (brushes 1, 3, 4, 5: 16-unit slabs at
+  +-512); a solid block fills x, y in [-448, 448] (brush 2). What is left is a ring corridor
+  64 units wide.
+- The west side of the ring is a staircase: 14 steps 64 deep and 16 high (brushes 16-29,
+  x in [-512, -448], from y = -448 up to y = 448, tops at z = 24 ... 232) up to a platform at
+  z = 248 over the north-west corner and the north side as far as x = 0 (brush 30). Every
+  other floor is at z = 8 (brushes 15, 31, 32). The platform's east edge, x = 0, is a 240-unit
+  cliff above the north corridor: from the east the north corridor is a dead end.
+  Flat here: the stairs are a corridor, and the cliff is a wall at x = 0 (DMLab's agent can
+  drop off the platform into the dead end; here it cannot).
+- Entities: the player start at (0, -480) with angle 90 (facing north, into the block);
+  a lemon (``lemon_reward``) at (-128, -480), west of the start, on the way to the stairs;
+  14 apples (``apple_reward``) the other way round: (128, 256, 384, 480) x -480 along the
+  south side, 480 x (-320, -192, -64, 64, 192, 320, 480) up the east side, (384, 256, 128) x
+  480 along the north side to the dead end; the melon (``watermelon_goal``) at (-40, 480) on
+  the platform, just past the top of the stairs.
+- Rewards (``game_scripts/common/pickups.lua``): apple +1, lemon -1, watermelon +20 (type GOAL).
 
-                                 +--+  y = 1152
-                                 |M |  melon (704, 1056)
-    +----------------------------+  |  y = 512
-    |D  a  a  a  a  a  a    |  L    |  apples y = 448; lemon (352, 448)
-    +----------------------+ +------+  y = 384
-    x = -1024             | |      x = 768
-                          |S|  start (0, 64), facing north
-                          +-+  y = 0
+So from the start facing the block the agent turns east to 14 apples (14 points) and a dead
+end, or west through the lemon (-1) and up the stairs to the melon (+20); the lemon route
+is 1,880 units long, the apple route 1,920 to the dead end.
+
+Rules: the paper's (section 3.3): the melon ends the episode as a success; 525 agent steps;
+3 actions {turn left, turn right, forward}. DMLab's own level
+(``game_scripts/levels/stairway_to_melon.lua`` -> ``factories/seek_avoid_factory.lua``) runs
+60 s episodes (900 agent steps at 60 frames/s and 4 frames a step), and the melon, a GOAL
+pickup, restarts the level (the agent back at the start, every fruit back) without ending the
+episode (``docs/developers/reference/lua_api.md``); that variant is not built here.
+
+Looks (DMLab draws every wall with one blue texture; the stairs and fruits tell places apart):
+the south corridor brick, the apple side (east and north-east) crates, the stair corridor
+orange, the platform blue, the cliff face red.
 """
 
 from __future__ import annotations
@@ -25,28 +45,40 @@ import math
 from simjax.envs import raycaster
 from simjax.envs.maze import Layout, MazeTask
 
-BRICK, CRATE, GREEN, RED, BLUE = 8, 2, 3, 5, 7  # wall looks (raycaster.TEXTURE_LOOKS)
+BRICK, CRATE, RED, BLUE, ORANGE = 8, 2, 5, 7, 9  # wall looks (raycaster.TEXTURE_LOOKS)
+OUTER, INNER, CLIFF_X = 512.0, 448.0, 0.0
 
 WALLS = (
-    # start corridor
-    (-64, 0, 64, 0, BRICK), (64, 0, 64, 384, BRICK), (-64, 384, -64, 0, BRICK),
-    # east arm to the corner, then the melon's corridor north
-    (64, 384, 768, 384, GREEN), (768, 384, 768, 512, GREEN), (768, 512, 768, 1152, BLUE),
-    (768, 1152, 640, 1152, BLUE), (640, 1152, 640, 512, BLUE), (640, 512, 0, 512, GREEN),
-    # west arm: the apples, ending in a dead end
-    (0, 512, -1024, 512, CRATE), (-1024, 512, -1024, 384, RED), (-1024, 384, -64, 384, CRATE),
+    # south corridor (the start, the lemon to the west, the first apples to the east)
+    (-OUTER, -OUTER, OUTER, -OUTER, BRICK), (INNER, -INNER, -INNER, -INNER, BRICK),
+    (-OUTER, -INNER, -OUTER, -OUTER, BRICK), (OUTER, -OUTER, OUTER, -INNER, BRICK),
+    # east side and the north side up to the cliff: the apples
+    (OUTER, -INNER, OUTER, OUTER, CRATE), (INNER, INNER, INNER, -INNER, CRATE),
+    (OUTER, OUTER, CLIFF_X, OUTER, CRATE), (CLIFF_X, INNER, INNER, INNER, CRATE),
+    # the cliff at the platform's east edge: the apple side's dead end
+    (CLIFF_X, OUTER, CLIFF_X, INNER, RED),
+    # west side: the stairs, as a corridor
+    (-OUTER, INNER, -OUTER, -INNER, ORANGE), (-INNER, -INNER, -INNER, INNER, ORANGE),
+    # the platform over the north-west corner: the melon
+    (CLIFF_X, OUTER, -OUTER, OUTER, BLUE), (-OUTER, OUTER, -OUTER, INNER, BLUE), (-INNER, INNER, CLIFF_X, INNER, BLUE),
 )
-START_XY = (0.0, 64.0)
-APPLES_XY = tuple((float(x), 448.0) for x in (-224, -352, -480, -608, -736, -864))
-LEMON_XY = (352.0, 448.0)
-MELON_XY = (704.0, 1056.0)
-APPLE_REWARD, LEMON_REWARD, MELON_REWARD = 1.0, -1.0, 20.0
+START_XY = (0.0, -480.0)  # info_player_start origin "0 -480 32", angle 90
+START_HEADING = math.pi / 2
+LEMON_XY = (-128.0, -480.0)
+APPLES_XY = (
+    tuple((float(x), -480.0) for x in (128, 256, 384, 480))
+    + tuple((480.0, float(y)) for y in (-320, -192, -64, 64, 192, 320, 480))
+    + tuple((float(x), 480.0) for x in (384, 256, 128))
+)
+MELON_XY = (-40.0, 480.0)
+APPLE_REWARD, LEMON_REWARD, MELON_REWARD = 1.0, -1.0, 20.0  # pickups.lua quantities
 
 
 def melon_layout() -> Layout:
+    """Items in order: the 14 apples, the lemon, the melon (the only one that ends)."""
     items = [(x, y, raycaster.APPLE, APPLE_REWARD, False) for x, y in APPLES_XY]
     items += [(*LEMON_XY, raycaster.LEMON, LEMON_REWARD, False), (*MELON_XY, raycaster.MELON, MELON_REWARD, True)]
     return Layout.build(WALLS, items, [START_XY])
 
 
-MELON_TASK = MazeTask("melon", random_heading=False, heading=math.pi / 2, max_steps=525, num_actions=3)
+MELON_TASK = MazeTask("melon", random_heading=False, heading=START_HEADING, max_steps=525, num_actions=3)
