@@ -57,7 +57,7 @@ def _bend_at(g, pos, size):
         found = False
         for v in DIRS:
             u = (v[1], -v[0])
-            at = lambda uu, vv: add(add(pos, uu, u), vv, v)
+            at = lambda uu, vv, pos=pos, u=u, v=v: add(add(pos, uu, u), vv, v)
             if not all(is_wall(at(k, 0)) and is_wall(at(k, -1)) for k in range(size)):
                 continue
             if not all(is_corr(at(k, 1)) for k in range(-1, size + 1)):

@@ -6,17 +6,16 @@ import collections
 import math
 
 import chex
+import dmlab_reference
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import dmlab_reference
 from helpers import walk
 
 from simjax.envs import dmlab_maze, make, melon, motion, raycaster
 from simjax.envs.dmlab_maze import DMLabMazeGenerator
-from simjax.envs.explore_goals import (ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator,
-                                       random_spanning_tree)
+from simjax.envs.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator, random_spanning_tree
 
 
 def _placed(env, x, y, degrees, key=0):

@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 
 import jax
 import jax.numpy as jnp
@@ -225,7 +224,7 @@ class DMLabMazeGenerator:
         fits = jnp.ones(prob.shape, bool)
         cells, active = jnp.int32(0), jnp.bool_(True)
         picks, valid = [], []
-        for k, kk in enumerate(jax.random.split(key, self.max_rooms)):
+        for kk in jax.random.split(key, self.max_rooms):
             p = jnp.where(fits, prob, 0.0)
             ok = active & (p.sum() > 0) & (cells < target)
             idx = jax.random.categorical(kk, jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf))
@@ -488,7 +487,7 @@ def remove_horseshoe_bends(grid: jnp.ndarray, width: int) -> jnp.ndarray:
 
 
 # ---- static tables -----------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _room_proposals(height, width, min_size, max_size):
     nr, nc = (height - 1) // 2, (width - 1) // 2
     lo, hi = (min_size - 1) // 2, (max_size - 1) // 2
@@ -519,7 +518,7 @@ def _separate(props):
             | (c1[:, None] <= c0[None]) | (c1[None] <= c0[:, None]))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _node_edges(shape):
     """Edges between 4-neighbour nodes: (a, b) flat node ids; horizontal ones first."""
     nr, nc = shape
@@ -535,7 +534,7 @@ def _node_edges(shape):
     return np.asarray(a, np.int32), np.asarray(b, np.int32)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _edge_cells(shape):
     """The text cell between the two nodes of each edge."""
     nc = shape[1]
@@ -544,7 +543,7 @@ def _edge_cells(shape):
     return (ra + rb + 1).astype(np.int32), (ca + cb + 1).astype(np.int32)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _node_neighbours(shape):
     """(N, 4) neighbour node (-1 off the grid) and (N, 4) edge id, per DMLab direction."""
     nr, nc = shape
@@ -563,7 +562,7 @@ def _node_neighbours(shape):
     return nbr, eid
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _faces(height, width, s):
     segs, side_a, side_b = [], [], []
     for r in range(1, height - 1):  # vertical faces between (r, c) and (r, c + 1)

@@ -112,8 +112,9 @@ def random_spanning_tree(key: jax.Array, graph: GridGraph) -> jnp.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class MazeGenerator:
-    """The paper variant's mazes (``explore-goals-paper``) as raycaster layouts: the wall rows are fixed (every interior edge, then the outer
-    boundary); a maze is which of them are open, and the looks of the closed ones."""
+    """The paper variant's mazes (``explore-goals-paper``) as raycaster layouts: the wall rows
+    are fixed (every interior edge, then the outer boundary); a maze is which of them are open,
+    and the looks of the closed ones."""
 
     cells: int = 9
     cell_size: float = 128.0
