@@ -41,6 +41,9 @@ FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm
                 "forward_loss", "inverse_loss")
 
 
+SLOWEST_RATE = 200.0  # agent steps/s below which a first compiled call counts as stalled
+
+
 class Diverged(RuntimeError):
     """Training produced a non-finite loss, gradient norm or parameter; nothing of that update
     was written."""
@@ -108,7 +111,10 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     rows = [list(columns)]
     sharding = batch_sharding(len(batch), devices)
     shard = {} if sharding is None else {"in_shardings": sharding, "out_shardings": sharding}
-    watchdog = StallWatchdog(stall_limit) if stall_limit else None
+    steps_per_chunk = config.updates_per_log * config.steps_per_update
+    # a first call is a stall only once it is slower than SLOWEST_RATE: a sweep's calls train
+    # every member, so they take members x longer than one seed's
+    watchdog = StallWatchdog(max(stall_limit, len(batch) * steps_per_chunk / SLOWEST_RATE)) if stall_limit else None
     if watchdog:
         watchdog.begin()
     if resume and (out / "checkpoint.msgpack").exists():
@@ -126,7 +132,6 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
     chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
 
-    steps_per_chunk = config.updates_per_log * config.steps_per_update
     total = config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, len(batch))
     if not quiet:
