@@ -6,7 +6,8 @@
 ``bonus`` (T, N) is r+ for each rollout transition, already scaled by beta and free of
 gradients; ``loss`` is lambda * L_F + (1 - lambda) * L_I of eq. (8), to be added to eta times
 the RL loss. ``state`` carries each environment's last frames and actions across rollouts and
-the running statistics of the two normalisations:
+the running statistics of the two normalisations, and a stateful model's own state (EC's
+episodic memories, ``model``; empty for the others):
 
 * ``obs_norm`` (default on): the novelty networks see frames normalised per pixel by a running
   mean and std, clipped to [-5, 5], as in RND. A random target on raw pixels mostly encodes
@@ -46,6 +47,7 @@ class NoveltyState(NamedTuple):
     obs_stats: RunningMeanStd  # per pixel, (h, w, c)
     ret_stats: RunningMeanStd  # scalar, of the discounted error sums
     ret_running: jnp.ndarray  # (N,) discounted error sum per environment
+    model: Any = ()  # a stateful model's own per-environment state (EC's episodic memories)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +70,10 @@ class Novelty:
             return {}, state
         zeros = jnp.zeros((n,), bool)
         tl, _ = build_timeline(state.memory, obs[None], zeros[None], jnp.zeros((1, n), jnp.int32), obs, zeros)
-        return self.model.init(key, tl, self._frames(tl, state.obs_stats.update(obs))), state
+        params = self.model.init(key, tl, self._frames(tl, state.obs_stats.update(obs)))
+        if getattr(self.model, "stateful", False):
+            state = state._replace(model=self.model.init_state(params, obs, jax.random.fold_in(key, 1)))
+        return params, state
 
     def _frames(self, tl, obs_stats):
         return normalize_frames(tl.frames, obs_stats if self.obs_norm else None)
@@ -79,7 +84,12 @@ class Novelty:
             return zero, (jnp.zeros(actions.shape, jnp.float32), {k: zero for k in METRICS}, state)
         tl, memory = build_timeline(state.memory, obs, reset, actions, last_obs, last_reset)
         obs_stats = state.obs_stats.update(obs) if self.obs_norm else state.obs_stats
-        error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats), hyper)
+        if getattr(self.model, "stateful", False):
+            error, scored, loss, metrics, model_state = self.model.apply_with_state(
+                params, state.model, tl, self._frames(tl, obs_stats), hyper)
+        else:
+            error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats), hyper)
+            model_state = state.model
         error = jax.lax.stop_gradient(error) * scored
         ret_stats, ret_running = state.ret_stats, state.ret_running
         if self.bonus_norm:
@@ -89,4 +99,4 @@ class Novelty:
             error = error / jnp.sqrt(ret_stats.var + 1e-8)
         bonus = (self.bonus_scale if hyper is None else hyper.bonus_scale) * error
         metrics = {**metrics, "bonus_mean": jnp.mean(bonus)}
-        return loss, (bonus, metrics, NoveltyState(memory, obs_stats, ret_stats, ret_running))
+        return loss, (bonus, metrics, NoveltyState(memory, obs_stats, ret_stats, ret_running, model_state))

@@ -8,6 +8,7 @@
                         swept setting
     checkpoint.msgpack  the runner state of every seed as of the last metrics row (rewritten,
                         atomically, after each row, so a stopped or killed run keeps it)
+    pretrain.csv        EC only: its reachability network's pretraining, one row per seed per chunk
     curve.png           success ratio and mean episode length against agent steps
     fork.json           where a fork (``simjax.runs.fork``) came from, and what it changed
     tensorboard/seedK/  with ``--tensorboard``: metrics.csv's values as TensorBoard scalars
@@ -196,6 +197,9 @@ def load_checkpoint(run_dir: Path, template=None) -> dict:
     from flax import serialization
 
     ckpt = serialization.msgpack_restore((Path(run_dir) / "checkpoint.msgpack").read_bytes())
+    novelty = ckpt["runner"].get("novelty") if isinstance(ckpt.get("runner"), dict) else None
+    if isinstance(novelty, dict) and "model" not in novelty:
+        novelty["model"] = {}  # saved before NoveltyState had a model state (EC's); the others' is empty
     if template is not None:
         ckpt["runner"] = serialization.from_state_dict(template, ckpt["runner"])
     return ckpt
