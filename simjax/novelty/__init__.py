@@ -1,4 +1,4 @@
-"""Novelty models as exploration bonuses: SIM (and its ablations), RND and ICM.
+"""Novelty models as exploration bonuses: SIM (and its ablations), RND, ICM and EC.
 
 ``make_novelty(settings, num_actions, obs_shape)`` builds the ``Novelty`` object the learner is
 given from typed ``NoveltySettings``, after ``check_observation`` has made sure the model can
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from simjax.novelty.base import Memory, RunningMeanStd, Timeline, build_timeline, in_episode, init_memory
 from simjax.novelty.bonus import METRICS, Novelty, NoveltyState
+from simjax.novelty.ec import EC
 from simjax.novelty.models import ICM, RND, SIM, Windows
 from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, check_observation
 
@@ -25,6 +26,9 @@ def make_model(settings: NoveltySettings, num_actions: int):
             sequence=settings.sim_sequence, target=settings.sim_target, inverse=settings.sim_inverse,
             forward_weight=settings.forward_weight,
         )
+    if settings.algo == "ec":
+        return EC(num_actions, capacity=settings.ec_memory, width=settings.ec_width, features=settings.ec_embed,
+                  online=settings.ec_online)
     return None
 
 
@@ -41,7 +45,7 @@ def make_novelty(settings: NoveltySettings, num_actions: int, obs_shape=None, ta
 
 
 __all__ = [
-    "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltyHyper", "NoveltySettings", "NoveltyState", "RND", "RunningMeanStd",
-    "SIM", "Timeline", "Windows", "build_timeline", "check_observation", "in_episode", "init_memory", "make_model",
-    "make_novelty",
+    "EC", "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltyHyper", "NoveltySettings", "NoveltyState", "RND",
+    "RunningMeanStd", "SIM", "Timeline", "Windows", "build_timeline", "check_observation", "in_episode", "init_memory",
+    "make_model", "make_novelty",
 ]

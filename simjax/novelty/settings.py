@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODELS = ("sim", "rnd", "icm")  # and "a2c": no model, no bonus
+MODELS = ("sim", "rnd", "icm", "ec")  # and "a2c": no model, no bonus
 SIM_COMBINE = ("full", "itr", "concat")
 SIM_SEQUENCE = ("lstm", "ff")
 SIM_TARGET = ("rnd", "embed")
@@ -52,6 +52,10 @@ class NoveltySettings:
     sim_sequence: str = "lstm"
     sim_target: str = "rnd"
     sim_inverse: bool = True
+    ec_memory: int = 200  # EC: episodic memory slots per environment
+    ec_width: int = 64  # EC: filters of the ResNet-18's first stage
+    ec_embed: int = 512  # EC: embedding size, and the comparator's fc
+    ec_online: bool = False  # ECO: the reachability network also trains during the run
 
     def __post_init__(self):
         if self.algo != "a2c" and self.algo not in MODELS:
@@ -66,6 +70,9 @@ class NoveltySettings:
             raise ValueError(f"{flag('act_len')} (L) must lie in [1, {MAX_WINDOW}], got {self.act_len}")
         if not 0.0 <= self.forward_weight <= 1.0:
             raise ValueError(f"{flag('forward_weight')} (lambda) must lie in [0, 1], got {self.forward_weight}")
+        for name in ("ec_memory", "ec_width", "ec_embed"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{flag(name)} must be a positive integer, got {getattr(self, name)}")
         if not (self.bonus_scale >= 0 and math.isfinite(self.bonus_scale)):
             raise ValueError(f"{flag('bonus_scale')} must be a finite number >= 0, got {self.bonus_scale}")
 
@@ -100,3 +107,42 @@ def check_observation(settings: NoveltySettings, obs_shape, task: str = "this ta
             f"{RND_TARGET_MIN_SIZE}; {task} gives {shape[0]}x{shape[1]}. "
             "Use --algo sim with --sim-target embed, or --algo icm."
         )
+
+
+# EC's pretraining (``simjax.novelty.ec_pretrain``): random-policy frames come in chunks of at
+# most PRETRAIN_CHUNK steps per environment, each trained on, then dropped (never all stored);
+# one compiled call does at most PRETRAIN_CALL updates, so a call stays short on a CPU
+PRETRAIN_CHUNK = 500
+PRETRAIN_CALL = 32
+PAIRS_PER_STEP = 0.25  # one training pair per 4 steps: the rate of EC's v2 sampler
+PRETRAIN_BATCH = 64  # EC's constants.py BATCH_SIZE
+
+
+@dataclasses.dataclass(frozen=True)
+class PretrainPlan:
+    """How EC's pretraining spends ``steps`` agent steps per seed of ``num_envs`` environments
+    and ``epochs`` passes: ``num_chunks`` chunks of ``chunk_len`` steps per environment, each
+    trained on by ``calls`` compiled calls of ``updates_per_call`` Adam updates."""
+
+    chunk_len: int
+    num_chunks: int
+    calls: int
+    updates_per_call: int
+    num_envs: int
+
+    @staticmethod
+    def make(steps: int, epochs: int, num_envs: int) -> PretrainPlan:
+        chunk_len = max(1, min(PRETRAIN_CHUNK, math.ceil(steps / num_envs)))
+        num_chunks = math.ceil(steps / (num_envs * chunk_len))
+        updates = max(1, math.ceil(epochs * PAIRS_PER_STEP * num_envs * chunk_len / PRETRAIN_BATCH))
+        calls = math.ceil(updates / PRETRAIN_CALL)
+        return PretrainPlan(chunk_len, num_chunks, calls, math.ceil(updates / calls), num_envs)
+
+    @property
+    def env_steps(self) -> int:
+        """Agent steps per seed the pretraining takes (at least the steps asked for)."""
+        return self.num_chunks * self.chunk_len * self.num_envs
+
+    @property
+    def updates(self) -> int:
+        return self.num_chunks * self.calls * self.updates_per_call
