@@ -48,6 +48,7 @@ from simjax.envs.episodes import rollout, starts_episode
 from simjax.networks import ActorCritic
 from simjax.novelty import METRICS as NOVELTY_METRICS
 from simjax.novelty import Novelty, make_novelty
+from simjax.novelty.ec_pretrain import make_pretrainer
 
 ADAM_EPS = 1e-5
 
@@ -81,6 +82,7 @@ class Trainer(NamedTuple):
     train: Callable
     network: ActorCritic
     novelty: Novelty
+    pretrain: object = None  # EC's ``Pretrainer`` (before the first update; ``train`` runs it), or None
 
 
 def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) -> jnp.ndarray:
@@ -237,11 +239,15 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         sums = ("episodes", "successes", "length_sum", "return_sum")
         return runner, {k: (v.sum() if k in sums else v.mean()) for k, v in info.items()}
 
+    pretrain = make_pretrainer(config, env, novelty)
+
     def train(key, hyper: Hyper | None = None):
         runner = init(key, hyper)
+        if pretrain is not None:
+            runner = pretrain.pretrain_runner(runner)
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
-    return Trainer(init, run_chunk, train, network, novelty)
+    return Trainer(init, run_chunk, train, network, novelty, pretrain)
 
 
 def make_train(config: TrainConfig, env=None):

@@ -18,11 +18,11 @@ from typing import NamedTuple
 import numpy as np
 
 from simjax.envs import check_name
-from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, flag
+from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, PretrainPlan, flag
 
 ALGOS = ("a2c",) + MODELS
-# paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method
-PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01}
+# paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method (EC's is its alpha)
+PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01, "ec": 0.01}
 # the settings that change no array shape once windows are laid out for their largest values:
 # they are arrays in the runner state (``Hyper``), so a sweep over them is one compiled program
 SWEEPABLE = ("learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
@@ -65,7 +65,7 @@ class TrainConfig:
     log_every: int = _f(25_000, "agent steps per seed between metric rows (rounded to updates)")
     # novelty models (ignored by a2c); eq. (8): lambda L_F + (1 - lambda) L_I - eta * RL objective
     bonus_scale: float | None = _f(None, "beta, r = task_scale * r_e + beta * r+ (default: the paper's, "
-                                   "sim 0.001, rnd 0.01, icm 0.01)")
+                                   "sim 0.001, rnd 0.01, icm 0.01, ec 0.01)")
     forward_weight: float = _f(0.2, "lambda, forward vs inverse loss weight (sim, icm)")
     rl_weight: float = _f(0.1, "eta, weight of the RL loss against the novelty model's")
     obs_len: int = _f(10, "SIM: H, frames in the observation window (>= 2)")
@@ -74,6 +74,16 @@ class TrainConfig:
     sim_sequence: str = _f("lstm", "SIM: lstm (two LSTMs) | ff (SIM-no-Seq: fc over stacked windows)")
     sim_target: str = _f("rnd", "SIM: rnd (fixed random target) | embed (SIM-no-RND: f_e(o_t))")
     sim_inverse: bool = _f(True, "SIM: train the inverse head (false: inverse loss off)")
+    ec_memory: int = _f(200, "EC: episodic memory slots per environment (the original code's capacity)")
+    ec_width: int = _f(64, "EC: filters of the ResNet-18's first stage (64: the paper's 64-128-256-512)")
+    ec_embed: int = _f(512, "EC: size of the frame embedding and of the comparator's fc (the paper's 512)")
+    ec_pretrain_steps: int = _f(600_000, "EC: random-policy agent steps its reachability network is trained on "
+                                "before the policy starts; part of --total-steps, so metrics.csv starts "
+                                "there (the paper's 0.6M shift); 0: no pretraining")
+    ec_pretrain_epochs: int = _f(10, "EC: pretraining updates (batch 64), as passes over the pretraining "
+                                 "frames at one pair per 4 steps")
+    ec_online: bool = _f(False, "EC: ECO, the reachability network also trains during the run, on pairs "
+                         "of the policy's own recent frames")
     obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
     bonus_norm: bool = _f(False, "divide the novelty error by a running std of its discounted sum")
     bonus_episodic: bool = _f(True, "the bonus's return ends with the episode, like the task reward's "
@@ -106,9 +116,13 @@ class TrainConfig:
             raise ValueError(f"{flag('gamma')} must lie in [0, 1], got {self.gamma}")
         if self.seed < 0:
             raise ValueError(f"{flag('seed')} must be >= 0, got {self.seed}")
-        if self.total_steps < self.steps_per_update:
+        for name in ("ec_pretrain_steps", "ec_pretrain_epochs"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{flag(name)} must be >= 0, got {getattr(self, name)}")
+        if self.total_steps - self.step_offset < self.steps_per_update:
+            pretraining = f" after EC's {self.step_offset:,} pretraining steps" if self.step_offset else ""
             raise ValueError(
-                f"{flag('total_steps')} ({self.total_steps}) is less than one update "
+                f"{flag('total_steps')} ({self.total_steps}) leaves less than one update{pretraining} "
                 f"(--num-envs * --rollout-len = {self.steps_per_update})"
             )
         if self.algo == "a2c" and not self.bonus_episodic:
@@ -122,7 +136,8 @@ class TrainConfig:
             algo=self.algo, bonus_scale=self.bonus_scale, gamma=self.gamma, obs_norm=self.obs_norm,
             bonus_norm=self.bonus_norm, forward_weight=self.forward_weight, obs_len=self.obs_len,
             act_len=self.act_len, sim_combine=self.sim_combine, sim_sequence=self.sim_sequence,
-            sim_target=self.sim_target, sim_inverse=self.sim_inverse,
+            sim_target=self.sim_target, sim_inverse=self.sim_inverse, ec_memory=self.ec_memory,
+            ec_width=self.ec_width, ec_embed=self.ec_embed, ec_online=self.ec_online,
         )
 
     def hyper(self) -> Hyper:
@@ -130,6 +145,20 @@ class TrainConfig:
         f = np.float32
         return Hyper(f(self.learning_rate), f(self.gamma), f(self.value_coef), f(self.entropy_coef),
                      f(self.max_grad_norm), f(self.task_scale), f(self.policy_weight), self.novelty.hyper())
+
+    @property
+    def pretrain_plan(self) -> PretrainPlan | None:
+        """How EC's reachability network is pretrained (None: no pretraining)."""
+        if self.algo != "ec" or self.ec_pretrain_steps == 0 or self.ec_pretrain_epochs == 0:
+            return None
+        return PretrainPlan.make(self.ec_pretrain_steps, self.ec_pretrain_epochs, self.num_envs)
+
+    @property
+    def step_offset(self) -> int:
+        """Agent steps per seed spent before the policy's first update: EC's pretraining (the
+        paper shifts EC's curves by it). ``total_steps`` counts them; metrics.csv starts after."""
+        plan = self.pretrain_plan
+        return 0 if plan is None else plan.env_steps
 
     @property
     def policy_weight(self) -> float:
@@ -142,7 +171,7 @@ class TrainConfig:
 
     @property
     def num_updates(self) -> int:
-        return math.ceil(self.total_steps / self.steps_per_update)
+        return math.ceil((self.total_steps - self.step_offset) / self.steps_per_update)
 
     @property
     def num_logs(self) -> int:

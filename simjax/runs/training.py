@@ -10,6 +10,14 @@ stop being finite ends at that row (``Diverged``), keeping the last finite check
 With several local devices (GPUs, or CPU devices made by ``simjax.runtime.configure``), the
 members are sharded over them (a ``jax.sharding.Mesh`` over the batch axis); the program, and
 every member's numbers, are the same as on one device.
+
+EC first pretrains its reachability network (``simjax.novelty.ec_pretrain``), call by call,
+each call watched like a chunk, its loss and accuracy written to pretrain.csv; the checkpoint
+after it is at ``config.step_offset`` agent steps, where metrics.csv's rows begin. A run stopped
+during the pretraining starts it again. The pretraining is done once per seed, not once per
+member: it reads nothing a sweep varies (a random policy, EC's own Adam), and every point's
+member of a seed starts from the same key (``grid.batch_inputs``), so each member gets the
+network its seed's pretraining gives, the one it would have trained itself.
 """
 
 from __future__ import annotations
@@ -24,6 +32,7 @@ import numpy as np
 from simjax.agents import TrainConfig
 from simjax.runs.folder import (
     MetricsLog,
+    atomic_write,
     load_checkpoint,
     metric_columns,
     rows_up_to,
@@ -81,6 +90,67 @@ def batch_sharding(batch: int, devices=None):
     return NamedSharding(Mesh(np.array(devices[:n]), ("member",)), PartitionSpec("member"))
 
 
+PRETRAIN_COLUMNS = ("env_steps", "seed", "loss", "accuracy", "usable_pairs", "wall_s")
+
+
+def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool, watchdog: StallWatchdog | None,
+             devices=None, sharding=None):
+    """EC's pretraining for every member of ``runner`` (leading axis: member, point-major, so
+    member ``p * len(seeds) + s`` is seed ``seeds[s]`` of point ``p``), done once per seed on
+    point 0's members (sharded over ``devices``) and given to every point's member of that seed;
+    one compiled call at a time; each chunk's mean loss and accuracy (on each batch before its
+    update) become a row per seed of ``out``/pretrain.csv. Returns the runner (sharded by
+    ``sharding``) with the pretrained network and its episodic memories restarted with it."""
+    def watched(fn, *args):
+        if watchdog:
+            watchdog.begin()
+        result = jax.block_until_ready(fn(*args))
+        if watchdog:
+            watchdog.end(record=False)  # a long pretraining call must not shorten the chunks' limit
+        return result
+
+    plan, num_seeds = pretrainer.plan, len(seeds)
+    num_members = len(runner.key)
+    keys = np.asarray(jax.device_get(runner.key)).reshape(num_members // num_seeds, num_seeds, -1)
+    if not (keys == keys[:1]).all():  # then the members of a seed would not share their pretraining
+        raise ValueError("EC's pretraining is shared by a seed's members, but they start from different keys")
+    first = jax.device_get(jax.tree.map(lambda x: x[:num_seeds], runner))  # point 0: one member per seed
+    seed_sharding = batch_sharding(num_seeds, devices)
+    shard = {} if seed_sharding is None else {"in_shardings": seed_sharding, "out_shardings": seed_sharding}
+    out_shard = {} if seed_sharding is None else {"out_shardings": seed_sharding}
+    state = jax.jit(jax.vmap(lambda r: pretrainer.start(r)[0]), **out_shard)(first)
+    collect = jax.jit(jax.vmap(pretrainer.collect), **shard).lower(state).compile()
+    train = jax.jit(jax.vmap(pretrainer.train), **shard).lower(state).compile()
+    rows, started = [",".join(PRETRAIN_COLUMNS)], time.perf_counter()
+    if not quiet:
+        print(f"pretraining EC's reachability network: {plan.env_steps:,} random-policy steps per seed, "
+              f"{plan.updates:,} updates of {pretrainer.batch} pairs", file=sys.stderr, flush=True)
+    for c in range(plan.num_chunks):
+        state = watched(collect, state)
+        per_call = []
+        for _ in range(plan.calls):
+            state, metrics = watched(train, state)
+            per_call.append(jax.device_get(metrics))
+        metrics = {k: np.mean([np.asarray(m[k]) for m in per_call], axis=0) for k in per_call[0]}
+        steps = (c + 1) * plan.chunk_len * plan.num_envs
+        wall = time.perf_counter() - started
+        for i, seed in enumerate(seeds):
+            rows.append(f"{steps},{seed},{metrics['loss'][i]:.6g},{metrics['accuracy'][i]:.6g},"
+                        f"{metrics['usable_pairs'][i]:.6g},{wall:.1f}")
+        atomic_write(out / "pretrain.csv", ("\r\n".join(rows) + "\r\n").encode())
+        if not quiet:
+            print(f"pretraining: {steps:,}/{plan.env_steps:,} steps per seed | loss {np.mean(metrics['loss']):.3f} | "
+                  f"accuracy {np.mean(metrics['accuracy']):.3f} | {wall:.0f} s", file=sys.stderr, flush=True)
+    params = jax.device_get(state.params)  # per seed; member m gets seed m % num_seeds's
+    index = np.arange(num_members) % num_seeds
+
+    def finish(r, p):  # each member as ``pretrainer.start`` leaves it (its key split), then finished
+        return jax.vmap(lambda r_, p_: pretrainer.finish(pretrainer.start(r_)[1], p_))(
+            r, jax.tree.map(lambda x: x[index], p))
+
+    return jax.jit(finish, **({} if sharding is None else {"out_shardings": sharding}))(runner, params)
+
+
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         stall_limit: float | None = None, tensorboard: bool = False, sweep: dict | None = None,
         devices=None) -> Path:
@@ -132,7 +202,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
     chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
 
-    total = config.num_logs * steps_per_chunk
+    total = config.step_offset + config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, len(batch))
     if not quiet:
         what = f"resuming at {done_steps:,} steps" if done_steps else "compiling"
@@ -143,8 +213,15 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     write_checkpoint(out, runner, done_steps, seeds)
     if watchdog:
         watchdog.end(record=False)
+    pretrain_s = 0.0
+    if trainer.pretrain is not None and done_steps < config.step_offset:
+        pretrain_s = time.perf_counter()
+        runner = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, watchdog, devices,
+                          sharding)
+        done_steps, pretrain_s = config.step_offset, time.perf_counter() - pretrain_s
+        write_checkpoint(out, runner, done_steps, seeds)
     compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
-    start = time.perf_counter() - wall_before
+    start = time.perf_counter() - wall_before - pretrain_s  # wall_s counts the pretraining too
     log = MetricsLog(out, rows, tensorboard, labels=tuple(sweep))
     try:
         last = time.perf_counter()
