@@ -1,0 +1,309 @@
+"""Episodic Curiosity (``simjax.novelty.ec``, ``ec_pretrain``): shapes, the episodic memory
+against a plain-Python port of the original wrapper's rules, the percentile, the bonus's sign,
+pretraining on a small maze, and a run end to end. Networks here are tiny (width 4-8, 16-32
+features); the paper's sizes are checked by shape only (``jax.eval_shape``, nothing compiled)."""
+
+import csv
+
+import chex
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from simjax import train as cli
+from simjax.agents import TrainConfig, make_trainer
+from simjax.envs import make
+from simjax.novelty import EC, Novelty, NoveltySettings, make_model
+from simjax.novelty.ec import (
+    BETA,
+    ECState,
+    ReachabilityNet,
+    episode_bounds,
+    percentile,
+    sample_pair,
+    scan_memory,
+)
+from simjax.novelty.ec_pretrain import Pretrainer
+from simjax.novelty.settings import PretrainPlan
+from simjax.runs.folder import load_checkpoint, write_checkpoint
+
+A = 4
+TINY = dict(width=4, features=16, capacity=8)
+
+
+@pytest.fixture(scope="module")
+def frames():
+    """A random-action rollout of maze-tiny: obs (T, N, 42, 42, 3), reset, actions, last obs/reset."""
+    env = make("maze-tiny")
+    T, N = 6, 2
+    k_reset, k_act = jax.random.split(jax.random.PRNGKey(0))
+    state = jax.vmap(env.reset)(jax.random.split(k_reset, N))
+    actions = jax.random.randint(k_act, (T, N), 0, A)
+
+    def step(s, a):
+        return jax.vmap(env.step)(s, a), (s.obs, s.done > 0)
+
+    state, (obs, reset) = jax.lax.scan(step, state, actions)
+    return obs, reset, actions, state.obs, state.done > 0
+
+
+# ----------------------------------------------------------------------------- the network
+
+def test_paper_sized_network_shapes_without_compiling():
+    """ResNet-18 with 512 outputs on 42x42 frames, fc 512, fc 2 (A.4); ~11M parameters."""
+    net = ReachabilityNet()
+    x = jax.ShapeDtypeStruct((3, 42, 42, 3), jnp.float32)
+    params = jax.eval_shape(net.init, jax.random.PRNGKey(0), x, x)
+    emb = jax.eval_shape(lambda p, x: net.apply(p, x, method=ReachabilityNet.embed), params, x)
+    logits = jax.eval_shape(net.apply, params, x, x)
+    chex.assert_shape([emb], (3, 512))
+    chex.assert_shape([logits], (3, 2))
+    p = params["params"]
+    assert p["first"]["kernel"].shape == (512, 512) and p["second"]["kernel"].shape == (512, 512)
+    assert "bias" not in p["second"] and p["out"]["kernel"].shape == (512, 2)
+    convs = [k for k in jax.tree_util.tree_leaves_with_path(p["embedding"]) if k[0][-1].key == "kernel"]
+    # conv1 + 8 blocks x 2 convs + 3 shortcut projections + the fc: ResNet-18's 18 layers and 3 1x1s
+    assert len(convs) == 1 + 16 + 3 + 1
+    widths = sorted({leaf.shape[-1] for _, leaf in convs})
+    assert widths == [64, 128, 256, 512]
+    assert 10e6 < sum(x.size for x in jax.tree.leaves(params)) < 13e6
+
+
+def test_split_first_layer_is_the_fc_of_the_concatenation():
+    net = ReachabilityNet(width=4, features=16, hidden=8)
+    k1, k2, k3 = jax.random.split(jax.random.PRNGKey(0), 3)
+    x1, x2 = jax.random.uniform(k1, (5, 42, 42, 3)), jax.random.uniform(k2, (5, 42, 42, 3))
+    params = net.init(k3, x1[:1], x2[:1])
+    p = params["params"]
+
+    @jax.jit
+    def both(x1, x2):
+        e1 = net.apply(params, x1, method=ReachabilityNet.embed)
+        e2 = net.apply(params, x2, method=ReachabilityNet.embed)
+        w = jnp.concatenate([p["first"]["kernel"], p["second"]["kernel"]], axis=0)  # W = [W1; W2]
+        h = jax.nn.relu(jnp.concatenate([e1, e2], axis=-1) @ w + p["first"]["bias"])
+        return net.apply(params, x1, x2), h
+
+    logits, h = both(x1, x2)
+    chex.assert_trees_all_close(logits, h @ p["out"]["kernel"] + p["out"]["bias"], atol=1e-5)
+
+
+def test_ec_shapes_and_state_through_novelty(frames):
+    obs, reset, actions, last_obs, last_reset = frames
+    T, N = actions.shape
+    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
+    params, state = novelty.init(jax.random.PRNGKey(0), obs[0])
+    chex.assert_shape([state.model.slots], (N, 8, 16))
+    np.testing.assert_array_equal(state.model.count, np.ones(N))  # the first frame is remembered
+    loss, (bonus, metrics, new_state) = jax.jit(novelty.loss_and_bonus)(params, state, *frames)
+    chex.assert_shape(bonus, (T, N))
+    chex.assert_tree_all_finite((loss, bonus, metrics, new_state))
+    chex.assert_trees_all_equal_shapes_and_dtypes(state, new_state)
+    assert float(loss) == 0.0  # EC's network is fixed during the run
+    assert np.all(np.abs(np.asarray(bonus)) <= 0.01 * BETA + 1e-7)
+    assert np.all(np.asarray(new_state.model.count) >= 1)
+    grads = jax.grad(lambda p: novelty.loss_and_bonus(p, state, *frames)[0])(params)
+    assert all(float(jnp.max(jnp.abs(g))) == 0.0 for g in jax.tree.leaves(grads))
+
+
+def test_ec_is_made_from_settings():
+    model = make_model(NoveltySettings(algo="ec", ec_memory=50, ec_width=8, ec_embed=32, ec_online=True), A)
+    assert isinstance(model, EC) and (model.capacity, model.width, model.features, model.online) == (50, 8, 32, True)
+    assert model.history == model.window and EC(A).history == 0
+
+
+# ------------------------------------------------------------------------- episodic memory
+
+@pytest.mark.parametrize("count", [0, 1, 2, 3, 7, 10, 11, 200])
+def test_percentile_is_numpys_over_the_slots_in_use(count):
+    values = np.asarray(jax.random.uniform(jax.random.PRNGKey(count), (200,)))
+    got = float(percentile(jnp.asarray(values), jnp.asarray(count)))
+    want = 0.0 if count == 0 else float(np.percentile(values[:count], 90))
+    assert got == pytest.approx(want, abs=1e-6)
+
+
+def _id_head(a, slots):
+    """A comparator over frame ids (hidden size 1): P(reachable) ~ 1 for the same id, ~ 0 else."""
+    return jnp.stack([jnp.zeros(slots.shape[0]), 20.0 - 40.0 * jnp.abs(a[..., 0] - slots[..., 0])], axis=-1)
+
+
+def _reference(ids, starts, capacity):
+    """The original CuriosityEnvWrapper / EpisodicMemory rules, in plain Python, for one env whose
+    memory starts with frame ``first``: per frame (bonus, memory size after)."""
+    memory, out = [ids[0]], []
+    for frame, start in zip(ids[1:], starts[1:]):
+        sims = [1.0 if m == frame else 0.0 for m in memory]
+        s = float(np.percentile(sims, 90)) if memory else 0.0
+        if start:
+            memory = [frame]
+            out.append((0.0, len(memory)))
+            continue
+        if s < 0.5:
+            assert len(memory) < capacity  # these sequences never fill the memory
+            memory.append(frame)
+        out.append((0.5 - s, len(memory)))
+    return out
+
+
+def test_memory_matches_the_original_rules_under_vmap():
+    # two environments, frame ids along 14 steps; env 1 starts a new episode at step 8
+    ids = np.array([[0, 1, 1, 2, 1, 1, 1, 1, 1, 1, 3, 3, 1, 0, 0],
+                    [5, 5, 6, 7, 5, 6, 7, 5, 9, 9, 9, 5, 6, 9, 9]], np.float32)
+    starts = np.zeros_like(ids, bool)
+    starts[1, 8] = True
+    capacity = 16
+    state = ECState(jnp.zeros((2, capacity, 1)).at[:, 0, 0].set(ids[:, 0]), jnp.ones((2,), jnp.int32),
+                    jax.random.split(jax.random.PRNGKey(0), 2))
+    xs = jnp.asarray(ids[:, 1:].T[..., None])  # (T, N, 1): a = b = the frame id
+    state, novelty, sims = jax.jit(lambda s, x, st: scan_memory(s, x, x, st, _id_head))(
+        state, xs, jnp.asarray(starts[:, 1:].T))
+    for n in range(2):
+        ref = _reference(ids[n], starts[n], capacity)
+        np.testing.assert_allclose(np.asarray(novelty[:, n]), [b for b, _ in ref], atol=1e-6)
+        assert int(state.count[n]) == ref[-1][1]
+        kept = sorted(np.asarray(state.slots[n, : ref[-1][1], 0]).tolist())
+        assert len(kept) == ref[-1][1] and set(kept) <= set(ids[n].tolist())
+    # the new episode forgot env 1's first episode: 9 (seen only after the start) and 5, 6 again
+    assert sorted(np.asarray(state.slots[1, : int(state.count[1]), 0]).tolist()) == [5.0, 6.0, 9.0]
+
+
+def test_a_full_memory_replaces_one_random_slot():
+    capacity = 3
+    state = ECState(jnp.zeros((1, capacity, 1)), jnp.ones((1,), jnp.int32), jax.random.PRNGKey(3)[None])
+    ids = jnp.arange(1.0, 7.0)[:, None, None]  # six new frames: 2 fill the memory, 4 replace
+    state, novelty, _ = scan_memory(state, ids, ids, jnp.zeros((6, 1), bool), _id_head)
+    assert int(state.count[0]) == capacity
+    np.testing.assert_allclose(np.asarray(novelty[:, 0]), 0.5, atol=1e-6)  # every frame was new
+    slots = sorted(np.asarray(state.slots[0, :, 0]).tolist())
+    assert len(set(slots)) == capacity and 6.0 in slots  # the last frame always lands somewhere
+    assert len({0.0, 1.0, 2.0} & set(slots)) < 3  # ... on a slot that was full
+
+
+def test_bonus_sign_and_scale_through_novelty(frames):
+    """A comparator that calls every pair reachable gives beta * (0.5 - 1) < 0; one that calls
+    none reachable, beta * 0.5 > 0; episode starts get 0."""
+    obs, reset, actions, last_obs, last_reset = frames
+    reset = reset.at[3, 0].set(True)  # o_3 of env 0 starts an episode: transition 2 scores 0
+    batch = (obs, reset, actions, last_obs, last_reset)
+    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
+    params, state = novelty.init(jax.random.PRNGKey(0), obs[0])
+    for bias, want in (([-30.0, 30.0], 0.01 * (BETA - 1.0)), ([30.0, -30.0], 0.01 * BETA)):
+        p = jax.tree.map(lambda x: x, params)
+        p["r"]["params"]["out"]["kernel"] = jnp.zeros_like(p["r"]["params"]["out"]["kernel"])
+        p["r"]["params"]["out"]["bias"] = jnp.asarray(bias)
+        _, (bonus, _, new_state) = novelty.loss_and_bonus(p, state, *batch)
+        bonus = np.asarray(bonus)
+        assert bonus[2, 0] == 0.0
+        mask = np.ones_like(bonus, bool)
+        mask[2, 0] = False
+        np.testing.assert_allclose(bonus[mask], want, atol=1e-6)
+        if want > 0:  # nothing was similar: every frame joined its memory
+            assert int(new_state.model.count[1]) == 1 + actions.shape[0]
+
+
+# ------------------------------------------------------------------------------ pretraining
+
+def test_pairs_are_near_or_far_within_one_episode():
+    segment = jnp.asarray(np.repeat([0, 1, 2], [40, 100, 20]))  # episodes of 40, 100, 20 frames
+    valid = jnp.ones((160,), bool)
+    start, end = episode_bounds(segment, valid)
+    i, j, label, ok = jax.vmap(lambda k: sample_pair(k, start, end, valid))(
+        jax.random.split(jax.random.PRNGKey(0), 4000))
+    i, j, label, ok = map(np.asarray, (i, j, label, ok))
+    seg = np.asarray(segment)
+    assert np.all(seg[i[ok]] == seg[j[ok]])
+    d = np.abs(i - j)
+    assert np.all((d[ok & (label == 1)] >= 1) & (d[ok & (label == 1)] <= 5))
+    assert np.all(d[ok & (label == 0)] > 25)
+    assert abs(label.mean() - 0.5) < 0.05
+    # far pairs do not exist in the 20-frame episode; near ones always do
+    assert not np.any(ok & (label == 0) & (seg[i] == 2)) and np.all(ok[label == 1])
+    # a far partner is drawn from the whole episode: both sides of the anchor occur
+    far = ok & (label == 0) & (seg[i] == 1)
+    assert np.any(j[far] < i[far]) and np.any(j[far] > i[far])
+
+
+def test_pretraining_separates_near_from_far_pairs_on_a_small_maze():
+    env = make("maze-tiny")
+    model = EC(A, width=8, features=32, capacity=8)
+    plan = PretrainPlan(chunk_len=200, num_chunks=2, calls=5, updates_per_call=40, num_envs=8)
+    pre = Pretrainer(env, model, plan, batch=32, learning_rate=1e-3)
+    params = {"r": model.net().init(jax.random.PRNGKey(1), jnp.zeros((1, 42, 42, 3)), jnp.zeros((1, 42, 42, 3)))}
+    trained, metrics = jax.jit(pre.run)(jax.random.PRNGKey(2), params)
+    print("pretraining accuracy per chunk:", np.asarray(metrics["accuracy"]), "usable:", np.asarray(metrics["usable_pairs"]))
+
+    # held-out pairs from a fresh random-policy chunk
+    state = pre.collect(pre.init(jax.random.PRNGKey(7), params))
+    start, end = pre.bounds(state.starts)
+    evaluate = jax.jit(lambda p, k: pre.loss(p, *pre.sample(k, state.frames, start, end))[1])
+    keys = jax.random.split(jax.random.PRNGKey(8), 8)
+    before = np.mean([float(evaluate(params, k)) for k in keys])
+    after = np.mean([float(evaluate(trained, k)) for k in keys])
+    print(f"held-out accuracy: untrained {before:.3f}, pretrained {after:.3f}")
+    # measured: untrained 0.45, pretrained 0.71 (train batches of the last chunk: 0.80)
+    assert after > 0.65 and after > before + 0.15
+
+
+# ---------------------------------------------------------------------------- configuration
+
+def test_config_counts_the_pretraining_in_the_step_axis():
+    config = TrainConfig(env="maze-dense", algo="ec", total_steps=2_000_000)
+    assert config.bonus_scale == 0.01 and config.step_offset == 600_000
+    assert config.num_updates * config.steps_per_update >= 1_400_000 > (config.num_updates - 1) * config.steps_per_update
+    plan = config.pretrain_plan
+    assert (plan.chunk_len, plan.num_chunks, plan.num_envs) == (500, 75, 16)
+    assert plan.updates >= 10 * 600_000 / 4 / 64  # 10 passes at one pair per 4 steps, batch 64
+    assert TrainConfig(algo="ec", ec_pretrain_steps=0).step_offset == 0
+    assert TrainConfig(algo="sim").step_offset == 0 and TrainConfig(algo="sim").pretrain_plan is None
+    with pytest.raises(ValueError, match="pretraining steps"):
+        TrainConfig(algo="ec", total_steps=600_000)
+    with pytest.raises(ValueError, match="--ec-memory"):
+        TrainConfig(algo="ec", ec_memory=0)
+
+
+def test_cli_accepts_ec_flags(monkeypatch):
+    monkeypatch.setattr(cli, "run", lambda *a, **k: pytest.fail("must not start a run"))
+    config, _, _ = cli.parse_config(["--algo", "ec", "--env", "maze-tiny", "--ec-memory", "10", "--ec-width", "4",
+                                     "--ec-embed", "8", "--ec-pretrain-steps", "1000", "--ec-pretrain-epochs", "2",
+                                     "--ec-online", "true", "--total-steps", "2000"])
+    assert (config.algo, config.ec_memory, config.ec_width, config.ec_embed, config.ec_online) == ("ec", 10, 4, 8, True)
+    assert config.step_offset == 1008  # 16 envs x 63 steps
+
+
+def test_checkpoints_from_before_the_model_state_still_load(tmp_path):
+    """A checkpoint saved before NoveltyState had its ``model`` field reads back with it empty."""
+    from flax import serialization
+
+    from simjax.runs.folder import atomic_write
+
+    old = {"runner": {"novelty": {"ret_running": np.zeros(2, np.float32)}}, "env_steps": 5, "seeds": [0]}
+    atomic_write(tmp_path / "checkpoint.msgpack", serialization.msgpack_serialize(old))
+    assert load_checkpoint(tmp_path)["runner"]["novelty"]["model"] == {}
+    write_checkpoint(tmp_path, {"novelty": {"model": ()}}, 5, [0])  # an empty model state round-trips
+    assert load_checkpoint(tmp_path)["runner"]["novelty"]["model"] == {}
+
+
+# ------------------------------------------------------------------------------- end to end
+
+def test_train_ec_end_to_end(tmp_path, capsys):
+    """``python -m simjax.train --algo ec`` on maze-tiny: pretraining, then rows from its end."""
+    out = tmp_path / "run"
+    code = cli.main(["--algo", "ec", "--env", "maze-tiny", "--num-envs", "2", "--rollout-len", "4",
+                     "--ec-width", "4", "--ec-embed", "8", "--ec-memory", "8", "--ec-pretrain-steps", "200",
+                     "--ec-pretrain-epochs", "3", "--total-steps", "216", "--log-every", "8",
+                     "--out", str(out), "--no-supervise", "--quiet"])
+    assert code == 0
+    with open(out / "metrics.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["env_steps"]) for r in rows] == [208, 216]  # the curve starts after the 200 steps
+    assert all(np.isfinite(float(r["bonus_mean"])) for r in rows)
+    with open(out / "pretrain.csv") as f:
+        pre = list(csv.DictReader(f))
+    assert [int(r["env_steps"]) for r in pre] == [200] and 0.0 <= float(pre[0]["accuracy"]) <= 1.0
+    ckpt = load_checkpoint(out)
+    assert ckpt["env_steps"] == 216 and np.asarray(ckpt["runner"]["novelty"]["model"]["count"]).min() >= 1
+    trainer = make_trainer(TrainConfig(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8,
+                                       ec_memory=8, ec_pretrain_steps=200, ec_pretrain_epochs=3, total_steps=216,
+                                       log_every=8))
+    assert trainer.pretrain is not None and trainer.pretrain.plan.env_steps == 200
