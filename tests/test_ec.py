@@ -107,6 +107,27 @@ def test_ec_shapes_and_state_through_novelty(frames):
     assert all(float(jnp.max(jnp.abs(g))) == 0.0 for g in jax.tree.leaves(grads))
 
 
+def test_eco_trains_the_network_on_pairs_of_recent_frames(frames):
+    """ECO: R's pair loss on each env's last ``window`` + T frames, trained by the learner."""
+    obs = frames[0]
+    model = EC(A, online=True, window=24, **TINY)
+    novelty = Novelty(model=model, bonus_scale=0.01)
+    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), obs[0])
+    chex.assert_shape(state.memory.frames, (24,) + obs.shape[1:])
+    # a memory of 24 real frames and a rollout of 16, one episode: far pairs exist
+    T, N = 16, obs.shape[1]
+    noise = jax.random.randint(jax.random.PRNGKey(1), (24 + T + 1, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    state = state._replace(memory=state.memory._replace(frames=noise[:24], reset=jnp.zeros((24, N), bool),
+                                                        valid=jnp.ones((24, N), bool)))
+    batch = (noise[24:-1], jnp.zeros((T, N), bool), jnp.zeros((T, N), jnp.int32), noise[-1], jnp.zeros((N,), bool))
+    grads, (bonus, metrics, new_state) = jax.jit(jax.grad(novelty.loss_and_bonus, has_aux=True))(params, state, *batch)
+    assert float(metrics["forward_loss"]) > 0.0
+    assert max(float(jnp.max(jnp.abs(g))) for g in jax.tree.leaves(grads)) > 0.0
+    assert not np.array_equal(np.asarray(new_state.model.key), np.asarray(state.model.key))
+    chex.assert_trees_all_equal_shapes_and_dtypes(state, new_state)
+    chex.assert_shape(bonus, (T, N))
+
+
 def test_ec_is_made_from_settings():
     model = make_model(NoveltySettings(algo="ec", ec_memory=50, ec_width=8, ec_embed=32, ec_online=True), A)
     assert isinstance(model, EC) and (model.capacity, model.width, model.features, model.online) == (50, 8, 32, True)
