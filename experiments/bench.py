@@ -14,9 +14,12 @@ Measures, each as the median of several calls of one compiled program (compile t
 - the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
   agent steps per second, with XLA's own FLOP count per agent step and the share of the
   machine's measured float32 matmul peak that gives;
-- the same loop with each novelty model (SIM at H=10, L=3, the paper's sizes; RND; ICM), with
-  the novelty model's FLOPs added, and where the time of one update goes: the novelty model's
-  forward+backward on one rollout, timed alone, against the whole update;
+- the same loop with each novelty model (SIM at H=10, L=3, the paper's sizes; RND; ICM; EC with
+  its ResNet-18 and 200-slot memories, its network fixed as after pretraining), with the novelty
+  model's FLOPs added, and where the time of one update goes: the novelty model's
+  forward+backward on one rollout (EC's forward: its network is not trained during the run),
+  timed alone, against the whole update;
+- EC's pretraining alone: Adam updates of its reachability network on batches of 64 pairs;
 - a sweep's padding overhead: SIM's loop for L = 1..5 (H = 10) as one 5-member program with
   windows laid out for L = 5, against the 5 programs built each for its own L, run one after
   the other (what 5 separate runs do);
@@ -156,9 +159,26 @@ def novelty_flops_per_agent_step(trainer, runner, config, batch) -> float:
     return flops / config.steps_per_update
 
 
-def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8) -> dict:
+def ec_flops_per_agent_step(trainer, runner, config, batch) -> float:
+    """XLA's FLOP count of EC's bonus on one rollout (every frame embedded once, then compared
+    with the memory step by step), per agent step. The memory comparison is a scan over T that
+    XLA's cost analysis counts once; the T-1 steps it misses are added from their count: per
+    environment and slot, the add and ReLU of the split first fc (2 hidden) and the fc 2
+    (4 hidden)."""
+    novelty, params = trainer.novelty, runner.params["novelty"]
+
+    def bonus(p):
+        return novelty.loss_and_bonus(p, runner.novelty, *batch)[1][0].sum()
+
+    missed = (config.rollout_len - 1) * config.num_envs * config.ec_memory * 6.0 * config.ec_embed
+    return (_xla_flops(bonus, params) + missed) / config.steps_per_update
+
+
+def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8, **settings) -> dict:
+    if algo == "ec":  # the policy's training loop, after pretraining (timed alone: bench_ec_pretraining)
+        settings = {"ec_pretrain_steps": 0, **settings}
     config = TrainConfig(env=task, algo=algo, num_envs=num_envs, total_steps=num_envs * 20 * updates,
-                         log_every=num_envs * 20 * updates)
+                         log_every=num_envs * 20 * updates, **settings)
     trainer = make_trainer(config)
     runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
     compile_s, med, _ = time_call(trainer.run_chunk, runner, repeats=3)
@@ -168,10 +188,14 @@ def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8) ->
     obs = jnp.broadcast_to(runner.env_state.obs, (T,) + runner.env_state.obs.shape)
     actions = jax.random.randint(jax.random.PRNGKey(1), (T, N), 0, 4)
     batch = (obs, jnp.zeros((T, N), bool), actions, runner.env_state.obs, jnp.zeros((N,), bool))
-    grad = jax.grad(lambda p: trainer.novelty.loss_and_bonus(p, runner.novelty, *batch)[0])
-    _, novelty_s, _ = time_call(grad, runner.params["novelty"])
+    if algo == "ec" and not config.ec_online:  # fixed network: the bonus's forward is all it costs
+        work = lambda p: trainer.novelty.loss_and_bonus(p, runner.novelty, *batch)[1][0]
+        nov_flops = ec_flops_per_agent_step(trainer, runner, config, batch)
+    else:
+        work = jax.grad(lambda p: trainer.novelty.loss_and_bonus(p, runner.novelty, *batch)[0])
+        nov_flops = novelty_flops_per_agent_step(trainer, runner, config, batch)
+    _, novelty_s, _ = time_call(work, runner.params["novelty"])
     a2c_flops = flops_per_agent_step(trainer, runner, config)
-    nov_flops = novelty_flops_per_agent_step(trainer, runner, config, batch)
     return {"algo": algo, "envs": num_envs, "steps_per_s": steps / med, "compile_s": compile_s,
             "flops_per_step": a2c_flops + nov_flops, "novelty_share": novelty_s / (med / config.updates_per_log)}
 
@@ -231,6 +255,24 @@ def bench_devices(task: str) -> list[dict]:
     return results
 
 
+def bench_ec_pretraining(task: str, num_envs: int = 16, updates: int = 4, **settings) -> dict:
+    """EC's pretraining: Adam updates of the reachability network (batches of 64 pairs) on a
+    chunk of random-policy frames, as pairs per second, and XLA's FLOPs per pair (the update
+    scan's body, counted once, is one update)."""
+    from simjax.novelty.ec_pretrain import Pretrainer
+    from simjax.novelty.settings import PretrainPlan
+
+    config = TrainConfig(env=task, algo="ec", num_envs=num_envs, **settings)
+    trainer = make_trainer(config)
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    plan = PretrainPlan(chunk_len=100, num_chunks=1, calls=1, updates_per_call=updates, num_envs=num_envs)
+    pre = Pretrainer(make(task), trainer.novelty.model, plan)
+    state = jax.jit(pre.collect)(jax.jit(pre.init)(jax.random.PRNGKey(1), runner.params["novelty"]))
+    compile_s, med, _ = time_call(pre.train, state, repeats=3)
+    return {"pairs_per_s": updates * pre.batch / med, "compile_s": compile_s,
+            "flops_per_pair": _xla_flops(pre.train, state) / pre.batch}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
@@ -258,7 +300,8 @@ def main(argv=None) -> int:
     world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
     mazes = [bench_maze_generation(c) for c in (None, 9, 11)]
     trains = [bench_train(args.task, n) for n in (16, 32, 64)]
-    novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm")]
+    novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm", "ec")]
+    ec_pretraining = bench_ec_pretraining(args.task)
     sweep, devices = bench_sweep(args.task), bench_devices(args.task)
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
@@ -296,8 +339,12 @@ def main(argv=None) -> int:
         )
     lines += ["", "Where an update's time goes: the novelty model's forward+backward on one rollout, timed",
               "alone, as a share of one whole update (rollout, both losses, gradients, Adam):", ""]
-    lines += [f"- {r['algo'].upper()} (N={r['envs']}, T=20{', H=10, L=3' if r['algo'] == 'sim' else ''}): "
-              f"{100 * r['novelty_share']:.0f}%" for r in novelties]
+    lines += [f"- {r['algo'].upper()} (N={r['envs']}, T=20{', H=10, L=3' if r['algo'] == 'sim' else ''}"
+              f"{', forward only' if r['algo'] == 'ec' else ''}): {100 * r['novelty_share']:.0f}%" for r in novelties]
+    r = ec_pretraining
+    lines += ["", f"EC's pretraining alone (ResNet-18 pairs, batch 64, Adam): {r['pairs_per_s']:,.0f} pairs/s, "
+              f"{r['flops_per_pair'] / 1e9:.2f} GFLOPs per pair ({100 * r['flops_per_pair'] * r['pairs_per_s'] / peak:.0f}% "
+              "of the matmul peak); the paper's 0.6M steps at 10 passes of one pair per 4 steps are 1.5M pairs."]
     lines += ["", *sweep_lines(sweep), "", *device_lines(devices)]
     per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
     lines += ["", "Maze generation alone (1024 mazes per call, `vmap`):", ""]
