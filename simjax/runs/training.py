@@ -190,7 +190,8 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     if resume and (out / "checkpoint.msgpack").exists():
         ckpt = load_checkpoint(out, runner_template(trainer, config, sweep))
         runner, done_steps = jax.device_put(ckpt["runner"], sharding), int(ckpt["env_steps"])
-        rows = rows_up_to(out / "metrics.csv", done_steps, columns)
+        if (out / "metrics.csv").exists():  # absent if stopped before the first row's file (EC's pretraining)
+            rows = rows_up_to(out / "metrics.csv", done_steps, columns)
         wall_before = float(rows[-1][-1]) if len(rows) > 1 else 0.0
     else:
         runner = jax.jit(jax.vmap(trainer.init), **shard)(*jax.device_put(batch_inputs(config, grid), sharding))
