@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
@@ -26,7 +27,10 @@ from simjax.novelty.ec import (
 )
 from simjax.novelty.ec_pretrain import Pretrainer
 from simjax.novelty.settings import PretrainPlan
+from simjax.plotting import read_members
 from simjax.runs.folder import load_checkpoint, write_checkpoint
+from simjax.runs.grid import batch_inputs, check_sweep
+from simjax.runs.training import pretrain
 
 A = 4
 TINY = dict(width=4, features=16, capacity=8)
@@ -223,6 +227,24 @@ def test_bonus_sign_and_scale_through_novelty(frames):
             assert int(new_state.model.count[1]) == 1 + actions.shape[0]
 
 
+def test_alpha_is_the_hyper_bonus_scale(frames):
+    """A sweep's beta (EC's alpha) reaches EC's bonus: ``hyper.bonus_scale`` replaces the
+    Novelty's own, as a traced value (one compiled program for every alpha)."""
+    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
+    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), frames[0][0])
+    hyper = NoveltySettings(algo="ec", bonus_scale=0.01).hyper()
+
+    @jax.jit
+    def bonus(alpha):
+        return novelty.loss_and_bonus(params, state, *frames, hyper._replace(bonus_scale=alpha))[1][0]
+
+    own = jax.jit(lambda: novelty.loss_and_bonus(params, state, *frames)[1][0])()
+    assert float(jnp.abs(own).max()) > 0.0
+    np.testing.assert_allclose(bonus(jnp.float32(0.01)), own, rtol=1e-6)
+    np.testing.assert_allclose(bonus(jnp.float32(0.03)), 3.0 * np.asarray(own), rtol=1e-5, atol=1e-9)
+    assert bonus._cache_size() == 1
+
+
 # ------------------------------------------------------------------------------ pretraining
 
 def test_pairs_are_near_or_far_within_one_episode():
@@ -328,3 +350,38 @@ def test_train_ec_end_to_end(tmp_path, capsys):
                                        ec_memory=8, ec_pretrain_steps=200, ec_pretrain_epochs=3, total_steps=216,
                                        log_every=8))
     assert trainer.pretrain is not None and trainer.pretrain.plan.env_steps == 200
+
+
+def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus(tmp_path):
+    """A sweep of alpha (``--bonus-scale``) over 2 seeds: pretrain.csv has a row per seed, not
+    per member; every point's member of a seed gets the network that pretraining the member on
+    its own gives; the first update's bonus of each point is its alpha times the same novelty
+    (the members of a seed start alike)."""
+    sweep = {"bonus_scale": [0.01, 0.03]}
+    config, grid = check_sweep(dict(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8,
+                                    ec_memory=8, ec_pretrain_steps=200, ec_pretrain_epochs=3, total_steps=216,
+                                    log_every=8, num_seeds=2), sweep)
+    out = tmp_path / "sweep"
+    runs.run(config, out, quiet=True, sweep=sweep)
+    with open(out / "pretrain.csv") as f:
+        pre = list(csv.DictReader(f))
+    assert [(int(r["env_steps"]), int(r["seed"])) for r in pre] == [(200, 0), (200, 1)]
+    members = read_members(out)
+    assert sorted(members) == [((("bonus_scale", a),), s) for a in (0.01, 0.03) for s in (0, 1)]
+    for seed in (0, 1):
+        low, high = (members[((("bonus_scale", a),), seed)] for a in (0.01, 0.03))
+        assert list(low["env_steps"]) == [208, 216]  # the rows start after the pretraining
+        assert abs(low["bonus_mean"][0]) > 0
+        np.testing.assert_allclose(high["bonus_mean"][0], 3.0 * low["bonus_mean"][0], rtol=1e-4)
+
+    # the network each member trains with (EC's stays fixed during the run): point 1's members
+    # were given point 0's pretraining; pretrained on their own, they get the same
+    trainer = make_trainer(config)
+    fresh = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
+    point1 = jax.tree.map(lambda x: x[2:], fresh)
+    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True, watchdog=None).params["novelty"]
+    saved = load_checkpoint(out)["runner"]["params"]["novelty"]
+    chex.assert_trees_all_close(jax.tree.map(lambda x: x[2:], saved), jax.device_get(own), rtol=1e-6, atol=1e-7)
+    first = jax.tree.leaves(saved)[0]
+    np.testing.assert_array_equal(first[0], first[2])  # point 0 and point 1 of seed 0
+    assert not np.array_equal(first[0], first[1])  # seed 0 and seed 1

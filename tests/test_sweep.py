@@ -133,6 +133,7 @@ def test_hoisted_input_projection_is_flax_lstm_cell():
     (["--algo", "sim", "--num-envs", "8,16"], "--num-envs cannot be swept"),
     (["--algo", "sim", "--sim-combine", "full,itr"], "--sim-combine cannot be swept"),
     (["--algo", "rnd", "--act-len", "1,2"], "sweeping --act-len changes nothing for --algo rnd"),
+    (["--algo", "ec", "--forward-weight", "0.1,0.2"], "sweeping --forward-weight changes nothing for --algo ec"),
     (["--algo", "sim", "--bonus-scale", "0.01,-1"], "--bonus-scale must be a finite number >= 0"),
     (["--algo", "sim", "--act-len", "2,2"], "--act-len repeats a value"),
     (["--env", "maze-nowhere", "--algo", "sim", "--act-len", "1,2"], "maze-nowhere"),

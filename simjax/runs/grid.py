@@ -47,7 +47,7 @@ def check_sweep(settings: dict, sweep: dict[str, list]) -> tuple[TrainConfig, li
     swept = {k for k, v in sweep.items() if len(v) > 1}
     pointless = ({"bonus_scale", "forward_weight", "rl_weight", "obs_len", "act_len"} if algo == "a2c"
                  else {"obs_len", "act_len"} if algo != "sim" else set()) & swept
-    if algo == "rnd":
+    if algo in ("rnd", "ec"):  # no forward / inverse split of the model's loss
         pointless |= {"forward_weight"} & swept
     if pointless:
         raise ValueError(f"sweeping {', '.join(map(flag, sorted(pointless)))} changes nothing for --algo {algo}")
@@ -70,7 +70,9 @@ def members(config: TrainConfig, grid: list[Point]) -> list[tuple[Point, int]]:
 
 def batch_inputs(config: TrainConfig, grid: list[Point]):
     """The PRNG keys (B, 2) and the ``Hyper`` (leading axis B) of every member. Seeds repeat
-    across points: every point starts from the same keys, so points differ only by settings."""
+    across points: every point starts from the same keys, so points differ only by settings
+    (and EC's pretraining, which reads none of them, is done once per seed and shared by the
+    seed's members: ``simjax.runs.training.pretrain``)."""
     import jax
     import jax.numpy as jnp
 
