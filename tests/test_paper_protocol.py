@@ -1,0 +1,210 @@
+"""The paper's evaluation protocol (experiments/paper/protocol.py) on hand-made metrics.csv
+files: final success, steps to 0.9, the bootstrap over seeds, curves, sweep folders, the
+commands read back from config.json, the table and figure scripts and collect.py. No JAX
+program is compiled."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper"
+sys.path.insert(0, str(PAPER))
+
+import collect  # noqa: E402
+import figure11  # noqa: E402
+import protocol  # noqa: E402
+import report  # noqa: E402
+import tables  # noqa: E402
+
+COLUMNS = ("env_steps,seed,success_ratio,mean_episode_length,mean_extrinsic_return,episodes,policy_loss,value_loss,"
+           "entropy,value_mean,grad_norm,bonus_mean,forward_loss,inverse_loss,steps_per_s,wall_s").split(",")
+SIM = {"env": "maze-very-sparse", "algo": "sim", "total_steps": 100, "num_seeds": 1, "seed": 0, "log_every": 10,
+       "bonus_scale": 0.001, "act_len": 3, "obs_len": 10, "sim_inverse": True, "sim_combine": "full",
+       "sim_sequence": "lstm", "sim_target": "rnd"}
+
+
+def series(ratios, episodes, step=10):
+    """One seed's rows: row i ends at (i + 1) * step agent steps."""
+    n = len(ratios)
+    return protocol.Series.from_columns({"env_steps": [(i + 1) * step for i in range(n)], "seed": [0] * n,
+                                         "success_ratio": list(ratios), "episodes": list(episodes)})
+
+
+def write_folder(folder: Path, config: dict, rows: list[dict], swept: tuple[str, ...] = (), sweep=None, grid=None):
+    """A run folder (or, with ``swept`` columns, a sweep folder) holding ``rows``."""
+    folder.mkdir(parents=True)
+    record = {"config": config, "versions": {}} | ({"sweep": sweep, "grid": grid} if sweep else {})
+    (folder / "config.json").write_text(json.dumps(record))
+    lines = [",".join([*swept, *COLUMNS])]
+    for r in rows:
+        values = {c: 0 for c in COLUMNS} | r
+        lines.append(",".join([str(r[s]) for s in swept] + [str(values[c]) for c in COLUMNS]))
+    (folder / "metrics.csv").write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def test_successes_are_ratio_times_episodes_and_a_row_without_episodes_holds_none():
+    s = series([0.0606061, math.nan, 0.5], [33, 0, 4])
+    assert s.successes.tolist() == [2, 0, 2] and s.episodes.tolist() == [33, 0, 4]
+    with pytest.raises(ValueError):
+        series([math.nan], [3])
+
+
+def test_steps_to_threshold_waits_for_100_episodes_and_reaches_at_the_crossing_row():
+    # row 0 alone is 100% but holds 50 episodes; windows of two rows: 0.5, 0.4, then exactly 0.9 at row 3
+    s = series([1.0, 0.0, 0.8, 1.0, 1.0], [50, 50, 50, 50, 50])
+    windowed = protocol.windowed_success(s)
+    assert np.isnan(windowed[0]) and windowed[1:].tolist() == [0.5, 0.4, 0.9, 1.0]
+    assert protocol.steps_to_threshold(s) == 40
+
+
+def test_steps_to_threshold_not_reached_is_none_and_shown_as_more_than_the_steps_trained():
+    s = series([0.5, 0.89, 0.89, 0.9], [100, 100, 100, 10], step=25_000)  # last window (rows 2-3): 98/110
+    assert protocol.steps_to_threshold(s) is None
+    assert report.fmt_steps(None, s.last_step) == ">100k" and report.fmt_steps(None, 1_500_000) == ">1.50M"
+
+
+def test_the_100_episode_window_spans_as_many_whole_rows_as_it_needs():
+    # 30 episodes a row: 3 rows hold 90, so the window at row 3 is all four rows (120 episodes)
+    s = series([1.0, 1.0, 1.0, 0.0], [30, 30, 30, 30])
+    assert protocol.window_start_by_episodes(s.episodes, 3) == 0
+    assert protocol.windowed_success(s)[3] == pytest.approx(90 / 120)
+    # a row in which no episode ended adds nothing; the window reaches back past it
+    s = series([1.0, math.nan, 0.0, 0.5], [60, 0, 20, 40])
+    assert protocol.window_start_by_episodes(s.episodes, 3) == 0  # 40 + 20 + 0 < 100: back to row 0
+    assert protocol.windowed_success(s)[3] == pytest.approx((60 + 0 + 0 + 20) / 120)
+
+
+def test_final_success_is_over_the_fewest_last_rows_covering_100k_steps():
+    # rows of 24,640 steps: 4 rows cover 98,560 < 100k, so the window is the last 5 rows
+    ratios = [0.0] * 5 + [0.5] + [1.0] * 4
+    s = series(ratios, [20] * 10, step=24_640)
+    final = protocol.final_success(s)
+    assert (final.successes, final.episodes) == (10 + 80, 100)
+    assert final.ratio == pytest.approx(0.9)
+    assert (final.from_step, final.to_step) == (5 * 24_640, 10 * 24_640)
+    assert protocol.window_start_by_steps(np.arange(1, 9) * 25_000) == 4  # 4 rows of 25k cover exactly 100k
+    short = protocol.final_success(series([1.0, 0.0], [10, 30], step=25_000))  # under 100k: every row
+    assert (short.successes, short.episodes, short.from_step) == (10, 40, 0)
+    assert math.isnan(protocol.final_success(series([math.nan], [0], step=200_000)).ratio)
+
+
+def test_bootstrap_interval_contains_the_mean_is_fixed_and_degenerate_for_identical_seeds():
+    values = [0.2, 0.9, 1.0, 0.6, 0.4, 0.95]
+    low, high = protocol.bootstrap_interval(values)
+    assert low < np.mean(values) < high and 0.2 <= low and high <= 1.0
+    assert protocol.bootstrap_interval(values) == (low, high)  # numpy seed 0 every time
+    assert protocol.bootstrap_interval([0.7, 0.7, 0.7]) == (0.7, 0.7)
+    assert protocol.bootstrap_interval([0.3]) == (0.3, 0.3)
+    # steps: the median's interval, with seeds that never reached 0.9 as +inf
+    low, high = protocol.bootstrap_interval([1e5, 2e5, math.inf, math.inf, math.inf], "median")
+    assert low <= 2e5 and high == math.inf
+
+
+def test_across_seeds_reports_each_seed_and_ignores_seeds_without_episodes():
+    summary = protocol.across_seeds({2: 1.0, 0: 0.5, 1: math.nan})
+    assert summary.seeds == (0, 1, 2) and summary.values[0] == 0.5 and math.isnan(summary.values[1])
+    assert summary.mean == 0.75 and summary.median == 0.75 and summary.statistic == "mean"
+    assert summary.interval[0] >= 0.5 and summary.interval[1] <= 1.0
+
+
+def test_curve_is_the_mean_over_seeds_with_a_min_max_band():
+    seeds = {0: series([0.0, 0.2, 0.4], [100, 100, 100]), 1: series([1.0, 1.0, 1.0], [100, 100, 100])}
+    curve = protocol.success_curve(seeds)
+    assert curve.env_steps.tolist() == [10, 20, 30]
+    assert curve.mean.tolist() == pytest.approx([0.5, 0.6, 0.7])
+    assert curve.low.tolist() == pytest.approx([0.0, 0.2, 0.4]) and curve.high.tolist() == [1.0, 1.0, 1.0]
+
+
+def sweep_rows():
+    rows = []
+    for act_len, ratio in ((1, 0.25), (3, 1.0)):
+        for seed in (0, 1):
+            rows += [{"act_len": act_len, "env_steps": k * 25_000, "seed": seed, "success_ratio": ratio, "episodes": 100}
+                     for k in (1, 2, 3)]
+    return rows
+
+
+def test_a_sweep_folder_is_one_point_per_grid_entry_and_a_run_folder_one_point(tmp_path):
+    grid = [{"act_len": n} for n in (1, 2, 3)]
+    folder = write_folder(tmp_path / "sweep", SIM, sweep_rows(), ("act_len",), {"act_len": [1, 2, 3]}, grid)
+    points = protocol.read_points(folder)
+    assert [p.setting for p in points] == grid
+    assert [p.config["act_len"] for p in points] == [1, 2, 3] and points[0].config["algo"] == "sim"
+    assert [sorted(p.seeds) for p in points] == [[0, 1], [], [0, 1]]  # L = 2 has no rows yet
+    assert points[0].seeds[1].successes.tolist() == [25, 25, 25] and points[2].trained == 75_000
+    assert protocol.label_points([points[0], points[2]]) == ["SIM (L=1)", "SIM (L=3)"]
+    run = write_folder(tmp_path / "run", SIM, [{"env_steps": 10, "seed": 0, "success_ratio": 0.5, "episodes": 4}])
+    with open(run / "metrics.csv", "a") as f:
+        f.write("20,0,0.7,300")  # the row a running training is writing as it is read
+    (point,) = protocol.read_points(run)
+    assert point.setting == {} and point.name == "run" and point.seeds[0].successes.tolist() == [2]
+
+
+def test_swept_cells_match_their_grid_values_whatever_their_spelling():
+    assert protocol.same_value("True", True) and protocol.same_value("false", False) and not protocol.same_value("1", False)
+    assert protocol.same_value("0.0001", 1e-4) and protocol.same_value("1e-04", 0.0001) and not protocol.same_value("0.001", 1e-4)
+    assert protocol.same_value("itr", "itr") and protocol.parse_cell("3") == 3 and protocol.parse_cell("0.01") == 0.01
+
+
+def test_labels_show_only_the_settings_that_differ_and_matter_to_the_method():
+    icm = SIM | {"algo": "icm", "bonus_scale": 0.01}
+    points = [protocol.Point(Path(n), {}, c, {}, {}) for n, c in
+              (("a", SIM), ("b", SIM | {"sim_sequence": "ff"}), ("c", icm), ("d", SIM | {"act_len": 1, "sim_inverse": False}))]
+    assert protocol.label_points(points) == [
+        "SIM (L=3, inverse=on, seq=lstm, beta=0.001)", "SIM-no-Seq (L=3, inverse=on, seq=ff, beta=0.001)",
+        "ICM (beta=0.01)", "SIM (L=1, inverse=off, seq=lstm, beta=0.001)"]
+    twins = [protocol.Point(Path("x"), {}, SIM, {}, {}), protocol.Point(Path("y"), {}, SIM, {}, {})]
+    assert protocol.label_points(twins) == ["SIM [x]", "SIM [y]"]
+
+
+def test_commands_are_read_back_from_config_json(tmp_path):
+    run = write_folder(tmp_path / "run", SIM | {"bonus_scale": 0.01, "total_steps": 500000, "num_seeds": 3}, [])
+    (command,) = report.input_commands(run)
+    assert command.startswith("python -m simjax.train --env maze-very-sparse --algo sim --total-steps 500000 --num-seeds 3")
+    assert "--bonus-scale 0.01" in command and "--act-len" not in command and command.endswith("--out " + report.rel(run))
+    sweep = write_folder(tmp_path / "sweep", SIM, [], ("act_len",), {"act_len": [1, 2, 3, 4, 5]}, [{"act_len": 1}])
+    (command,) = report.input_commands(sweep)
+    assert command.startswith("python -m simjax.sweep --env maze-very-sparse --algo sim")
+    assert "--act-len 1,2,3,4,5 --out" in command and command.count("--act-len") == 1
+
+
+def test_figure11_and_the_tables_write_csv_markdown_and_png(tmp_path):
+    grid = [{"act_len": n} for n in (1, 2, 3)]
+    folder = write_folder(tmp_path / "sweep", SIM, sweep_rows(), ("act_len",), {"act_len": [1, 2, 3]}, grid)
+    out = tmp_path / "results" / "paper-figure11"
+    assert figure11.main([str(folder), "--out", str(out)]) == 0
+    md = (out / "figure11.md").read_text()
+    assert "SIM (L=1)" in md and "SIM (L=3)" in md and "missing: L=2" in md and "python -m simjax.sweep" in md
+    assert "0.250 (300) / 0.250 (300)" in md  # 3 rows of 100 episodes per seed, 75k steps: all of them
+    assert (out / "figure11.png").stat().st_size > 0 and "env_steps" in (out / "figure11-curves.csv").read_text()
+    assert tables.main([str(folder), "--out-dir", str(tmp_path / "results")]) == 0
+    table1 = (tmp_path / "results" / "paper-table1" / "table1.md").read_text()
+    assert "| maze-very-sparse | ICM | no run |" in table1 and "68.6%" in table1  # the paper's number beside ours
+    assert "1.000 (300) / 1.000 (300)" in table1  # the L = 3 point: 100% in its last 100k steps
+    table2 = (tmp_path / "results" / "paper-table2" / "table2.md").read_text()
+    assert "| >75k / >75k | >75k [>75k, >75k] | 0/2 |" in table2  # L = 1 never reaches 0.9
+    assert "| 25k / 25k | 25k [25k, 25k] | 2/2 |" in table2  # L = 3 does at its first row of 100 episodes
+
+
+def test_collect_inserts_the_section_after_the_first_heading_then_replaces_only_it(tmp_path):
+    (tmp_path / "results" / "paper-x").mkdir(parents=True)
+    (tmp_path / "results" / "paper-x" / "x.md").write_text("# Table X\n\n| a |\n|---|\n| 0.5 |\n\n![x](x.png)\n")
+    (tmp_path / "docs").mkdir()
+    page = tmp_path / "docs" / "results.md"
+    page.write_text("# Results\n\nintro\n\n## old\n")
+    collect.main(["--page", str(page), "--results", str(tmp_path / "results")])
+    text = page.read_text()
+    assert text.startswith("# Results\n\n" + collect.BEGIN) and text.endswith("intro\n\n## old\n")
+    assert "### Table X" in text and "](../results/paper-x/x.png)" in text and "| 0.5 |" in text
+    (tmp_path / "results" / "paper-x" / "x.md").write_text("# Table X\n\n| 0.7 |\n")
+    collect.main(["--page", str(page), "--results", str(tmp_path / "results")])
+    again = page.read_text()
+    assert "| 0.7 |" in again and "| 0.5 |" not in again and again.count(collect.BEGIN) == 1
+    assert again.endswith("intro\n\n## old\n")
