@@ -73,6 +73,7 @@ def parse_sweep(argv=None):
 
 
 def main(argv=None) -> int:
+    runtime.split_cpu()  # one XLA device per core: members shard over them (BENCHMARKS.md: x1.06 for 2 seeds)
     runtime.configure()
     config, grid, sweep, out, args = parse_sweep(argv)
     out.mkdir(parents=True, exist_ok=True)
