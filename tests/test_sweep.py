@@ -221,6 +221,8 @@ def test_a_sweep_resumes_where_it_stopped(tmp_path):
     rows = [[{k: v for k, v in r.items() if k not in drop} for r in csv.DictReader(open(tmp_path / d / "metrics.csv"))]
             for d in ("whole", "parts")]
     assert len(rows[0]) == 6 and rows[0] == rows[1]
+    with pytest.raises(ValueError, match="is a sweep"):  # a fork continues one run, not a grid
+        runs.fork(tmp_path / "whole", tmp_path / "fork", {"total_steps": 48})
 
 
 def test_sharded_over_two_devices_gives_the_same_metrics(tmp_path):

@@ -51,6 +51,9 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
 
     src, dst = Path(src), Path(dst)
     source = restore(src)
+    if source.sweep:
+        raise ValueError(f"{src} is a sweep ({', '.join(map(flag, source.sweep))}); a fork goes on from one run's "
+                         "seeds, not from a grid of points")
     if dst.exists():
         raise FileExistsError(f"{dst} exists; a fork writes a new run folder")
     bad = sorted(set(changes) - set(FORKABLE))
