@@ -13,16 +13,14 @@ Bad values fail here, naming the flag, before anything compiles or is written.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import sys
 from pathlib import Path
 
 from simjax import flags, runtime
-from simjax.agents import make_trainer
 from simjax.novelty.settings import flag
 from simjax.runs import folder, stall
 from simjax.runs.grid import check_sweep
-from simjax.train import worker_command
+from simjax.train import new_run_folder, worker_command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -59,17 +57,7 @@ def parse_sweep(argv=None):
         config, grid = check_sweep(settings, sweep)
     except ValueError as err:
         parser.error(str(err))
-    out = args.out
-    if out is None:
-        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        out = Path("runs") / f"{config.env}-{config.algo}-sweep-{stamp}"
-    if (out / "metrics.csv").exists():
-        parser.error(f"{out} already holds a run (metrics.csv); choose another --out")
-    try:  # what needs the task's env fails now, not in the worker
-        make_trainer(config)
-    except ValueError as err:
-        parser.error(str(err))
-    return config, grid, sweep, out, args
+    return config, grid, sweep, new_run_folder(parser, config, args.out, "-sweep"), args
 
 
 def main(argv=None) -> int:

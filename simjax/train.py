@@ -64,17 +64,23 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
         config = TrainConfig(**given)
     except ValueError as err:
         parser.error(str(err))
-    out = args.out
+    return config, new_run_folder(parser, config, args.out), args
+
+
+def new_run_folder(parser: argparse.ArgumentParser, config: TrainConfig, out: Path | None, kind: str = "") -> Path:
+    """The folder a new run (``kind``: "-sweep" for a sweep) trains into, default
+    runs/ENV-ALGO[KIND]-TIME; refused (argparse's error) if it holds a run or if the learner
+    cannot be built for the task (its action space, its frames), before the worker starts."""
     if out is None:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        out = Path("runs") / f"{config.env}-{config.algo}-{stamp}"
+        out = Path("runs") / f"{config.env}-{config.algo}{kind}-{stamp}"
     if (out / "metrics.csv").exists():
         parser.error(f"{out} already holds a run (metrics.csv); choose another --out")
-    try:  # what needs the task's env (its action space, its frames) fails now, not in the worker
+    try:
         make_trainer(config)
     except ValueError as err:
         parser.error(str(err))
-    return config, out, args
+    return out
 
 
 def worker_command(out: Path, args: argparse.Namespace):
