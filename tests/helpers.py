@@ -12,3 +12,17 @@ def walk(env, start, actions):
 
     state = env.reset(start) if not hasattr(start, "pipeline_state") else start
     return jax.lax.scan(body, state, actions)[1]
+
+
+def random_rollout(env, key, T, N, num_actions=4):
+    """T random-action steps of N envs: obs (T, N, ...), reset (T, N), actions (T, N), and the
+    frame after the rollout and whether it starts an episode (the novelty models' batch)."""
+    k_reset, k_act = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(k_reset, N))
+    actions = jax.random.randint(k_act, (T, N), 0, num_actions)
+
+    def step(s, a):
+        return jax.vmap(env.step)(s, a), (s.obs, s.done > 0)
+
+    state, (obs, reset) = jax.lax.scan(step, state, actions)
+    return obs, reset, actions, state.obs, state.done > 0

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import random_rollout
 
 from simjax import runs
 from simjax import train as cli
@@ -39,17 +40,7 @@ TINY = dict(width=4, features=16, capacity=8)
 @pytest.fixture(scope="module")
 def frames():
     """A random-action rollout of maze-tiny: obs (T, N, 42, 42, 3), reset, actions, last obs/reset."""
-    env = make("maze-tiny")
-    T, N = 6, 2
-    k_reset, k_act = jax.random.split(jax.random.PRNGKey(0))
-    state = jax.vmap(env.reset)(jax.random.split(k_reset, N))
-    actions = jax.random.randint(k_act, (T, N), 0, A)
-
-    def step(s, a):
-        return jax.vmap(env.step)(s, a), (s.obs, s.done > 0)
-
-    state, (obs, reset) = jax.lax.scan(step, state, actions)
-    return obs, reset, actions, state.obs, state.done > 0
+    return random_rollout(make("maze-tiny"), jax.random.PRNGKey(0), T=6, N=2, num_actions=A)
 
 
 # ----------------------------------------------------------------------------- the network

@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 import pytest
+from helpers import random_rollout
 
 from simjax.envs import make
 from simjax.novelty import ICM, RND, SIM, Novelty, RunningMeanStd, build_timeline, init_memory
@@ -80,20 +81,8 @@ def test_icm_stacks_are_zero_before_the_episode_start():
 @pytest.fixture(scope="module")
 def frames():
     """Random-action rollouts: maze-tiny (seen) and maze-dense (unseen), (T+1, N, 42, 42, 3)."""
-
-    def collect(task, key, T=10, N=2):
-        env = make(task)
-        k_reset, k_act = jax.random.split(key)
-        state = jax.vmap(env.reset)(jax.random.split(k_reset, N))
-        actions = jax.random.randint(k_act, (T, N), 0, A)
-
-        def step(s, a):
-            return jax.vmap(env.step)(s, a), (s.obs, s.done > 0)
-
-        state, (obs, reset) = jax.lax.scan(step, state, actions)
-        return obs, reset, actions, state.obs, state.done > 0
-
-    return {"seen": collect("maze-tiny", jax.random.PRNGKey(0)), "unseen": collect("maze-dense", jax.random.PRNGKey(1))}
+    return {name: random_rollout(make(task), jax.random.PRNGKey(k), T=10, N=2, num_actions=A)
+            for name, task, k in (("seen", "maze-tiny", 0), ("unseen", "maze-dense", 1))}
 
 
 MODELS = {
