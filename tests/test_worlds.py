@@ -98,6 +98,26 @@ def test_melon_has_three_actions_and_525_steps():
     assert states.info["truncation"][524] == 1 and states.metrics["episode_success"][524] == 0
 
 
+def test_melon_dmlab_rules_restart_the_level_at_the_melon_and_run_900_steps():
+    env = make("melon-dmlab")
+    assert env.action_size == 3 and env.task.max_steps == 900
+    run = jax.jit(lambda s, a: walk(env, s, a))
+    pad = lambda route: jnp.concatenate([route, jnp.full((900 - route.shape[0],), L, jnp.int32)])
+    # the lemon route to the melon, then turning on the spot where the level put the agent back
+    states = run(_placed(env, -60.0, -480.0, 180.0), pad(_route((F, 30), (R, 7), (F, 60), (R, 7), (F, 40))))
+    done, reward = np.asarray(states.done), np.asarray(states.reward)
+    t = int(np.argmax(reward == 20.0))
+    assert reward[t] == 20.0 and reward[:t].sum() == -1.0 and reward[t + 1:].sum() == 0
+    np.testing.assert_allclose(np.asarray(states.pipeline_state.pose.pos[t]), melon.START_XY)
+    assert not np.asarray(states.pipeline_state.collected[t]).any()  # every fruit back, the lemon too
+    assert np.flatnonzero(done).tolist() == [899]  # the melon ended nothing; the clock did
+    assert states.metrics["episode_success"][899] == 1 and states.metrics["episode_return"][899] == 19.0
+    # the apple route's 14 points without the melon are no success
+    states = run(_placed(env, 60.0, -480.0, 0.0), pad(_route((F, 35), (L, 7), (F, 60), (L, 7), (F, 45))))
+    assert np.flatnonzero(np.asarray(states.done)).tolist() == [899]
+    assert states.metrics["episode_return"][899] == 14.0 and states.metrics["episode_success"][899] == 0
+
+
 def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     env = make("melon")
     east = motion.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples

@@ -10,7 +10,9 @@ MyWayHome (paper section 3.1, appendix B.1; spawn choices recorded in the README
 
 The paper's other two worlds (``simjax.envs.melon``, ``simjax.envs.explore_goals``):
 - ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
-  melon (+20, success); 525 steps, 3 actions;
+  melon (+20, success); 525 steps, 3 actions (the paper's rules);
+- ``melon-dmlab``: the same map under DMLab's level rules: the melon puts the agent back at the
+  start with every fruit back and the episode goes on; 900 steps, 3 actions;
 - ``explore-goals``: Explore Goal Locations Small as DeepMind Lab's level scripts have it: a new
   11x11 maze with up to 4 rooms every episode (DMLab's generator, ``simjax.envs.dmlab_maze``),
   the goal fixed for the episode in a room, +10 per goal reached, then the agent alone
@@ -34,7 +36,7 @@ from simjax.envs import mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
 from simjax.envs.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
-from simjax.envs.melon import MELON_TASK, melon_layout
+from simjax.envs.melon import MELON_TASK, MelonLevelEnv, melon_layout
 
 GYMNAX_PREFIX = "gymnax:"
 
@@ -70,6 +72,7 @@ _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
     "maze-very-sparse": lambda: _mywayhome("maze-very-sparse", [10], random_heading=False),
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
     "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
+    "melon-dmlab": MelonLevelEnv,
     "explore-goals": ExploreGoalsEnv,
     "explore-goals-paper": ExploreGoalsPaperEnv,
 }

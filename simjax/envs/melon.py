@@ -26,12 +26,13 @@ So from the start facing the block the agent turns east to 14 apples (14 points)
 end, or west through the lemon (-1) and up the stairs to the melon (+20); the lemon route
 is 1,880 units long, the apple route 1,920 to the dead end.
 
-Rules: the paper's (section 3.3): the melon ends the episode as a success; 525 agent steps;
-3 actions {turn left, turn right, forward}. DMLab's own level
-(``game_scripts/levels/stairway_to_melon.lua`` -> ``factories/seek_avoid_factory.lua``) runs
+Rules of ``melon``: the paper's (section 3.3, which states them): the melon ends the episode as
+a success; 525 agent steps; 3 actions {turn left, turn right, forward}. ``melon-dmlab``
+(``MelonLevelEnv``) has DMLab's own level's rules instead
+(``game_scripts/levels/stairway_to_melon.lua`` -> ``factories/seek_avoid_factory.lua``):
 60 s episodes (900 agent steps at 60 frames/s and 4 frames a step), and the melon, a GOAL
 pickup, restarts the level (the agent back at the start, every fruit back) without ending the
-episode (``docs/developers/reference/lua_api.md``); that variant is not built here.
+episode (``docs/developers/reference/lua_api.md``).
 
 Looks (DMLab draws every wall with one blue texture; the stairs and fruits tell places apart):
 the south corridor brick, the apple side (east and north-east) crates, the stair corridor
@@ -42,8 +43,11 @@ from __future__ import annotations
 
 import math
 
+import jax
+import jax.numpy as jnp
+
 from simjax.envs import raycaster
-from simjax.envs.maze import Layout, MazeTask
+from simjax.envs.maze import Layout, MazeEnv, MazeTask
 
 BRICK, CRATE, RED, BLUE, ORANGE = 8, 2, 5, 7, 9  # wall looks (raycaster.TEXTURE_LOOKS)
 OUTER, INNER, CLIFF_X = 512.0, 448.0, 0.0
@@ -82,3 +86,26 @@ def melon_layout() -> Layout:
 
 
 MELON_TASK = MazeTask("melon", random_heading=False, heading=START_HEADING, max_steps=525, num_actions=3)
+MELON_DMLAB_TASK = MazeTask("melon-dmlab", random_heading=False, heading=START_HEADING, max_steps=900, num_actions=3)
+APPLES_TOTAL = APPLE_REWARD * len(APPLES_XY)
+
+
+class MelonLevelEnv(MazeEnv):
+    """``melon-dmlab``: the same map under DMLab's level rules (module docstring): 900 steps, and
+    the melon (+20) puts the agent back at the start facing north with every fruit back, the
+    episode going on. An episode is a success if it reached the melon at least once, which is
+    when its return exceeds the apples' 14: without the melon the return is at most 14, with
+    k >= 1 melons at least 20k - (k + 1) >= 18 (a lemon per level at most)."""
+
+    def __init__(self, **kwargs):
+        layout = melon_layout()
+        layout = layout._replace(items=layout.items._replace(ends=jnp.zeros_like(layout.items.ends)))
+        super().__init__(layout, MELON_DMLAB_TASK, **kwargs)
+
+    def _on_touch(self, key, pose, world, collected):
+        hit = collected[-1]  # the melon, the layout's last item
+        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._spawn(key), pose)
+        return pose, world, collected & ~hit
+
+    def _success(self, reached, ep_return):
+        return ep_return > APPLES_TOTAL
