@@ -124,9 +124,15 @@ def test_eco_trains_the_network_on_pairs_of_recent_frames(frames):
 
 
 def test_ec_is_made_from_settings():
-    model = make_model(NoveltySettings(algo="ec", ec_memory=50, ec_width=8, ec_embed=32, ec_online=True), A)
+    settings = NoveltySettings(algo="ec", ec_memory=50, ec_width=8, ec_embed=32, ec_online=True, ec_beta=1.0)
+    model = make_model(settings, A)
     assert isinstance(model, EC) and (model.capacity, model.width, model.features, model.online) == (50, 8, 32, True)
     assert model.history == model.window and EC(A).history == 0
+    assert model.beta == 1.0 and EC(A).beta == BETA == TrainConfig().ec_beta
+    assert TrainConfig(algo="ec", ec_beta=1.0).novelty.ec_beta == 1.0
+    for bad in (-0.1, 1.5):
+        with pytest.raises(ValueError, match="--ec-beta"):
+            TrainConfig(algo="ec", ec_beta=bad)
 
 
 # ------------------------------------------------------------------------- episodic memory
@@ -186,9 +192,12 @@ def test_memory_matches_the_original_rules_under_vmap():
 
 def test_a_full_memory_replaces_one_random_slot():
     capacity = 3
-    state = ECState(jnp.zeros((1, capacity, 1)), jnp.ones((1,), jnp.int32), jax.random.PRNGKey(3)[None])
+    first = ECState(jnp.zeros((1, capacity, 1)), jnp.ones((1,), jnp.int32), jax.random.PRNGKey(3)[None])
     ids = jnp.arange(1.0, 7.0)[:, None, None]  # six new frames: 2 fill the memory, 4 replace
-    state, novelty, _ = scan_memory(state, ids, ids, jnp.zeros((6, 1), bool), _id_head)
+    state, novelty, _ = scan_memory(first, ids, ids, jnp.zeros((6, 1), bool), _id_head)
+    # beta is the bonus's offset: with the EC paper's 1 (episodes that can end early) a new frame scores 1
+    np.testing.assert_allclose(scan_memory(first, ids, ids, jnp.zeros((6, 1), bool), _id_head, beta=1.0)[1], 1.0,
+                               atol=1e-6)
     assert int(state.count[0]) == capacity
     np.testing.assert_allclose(np.asarray(novelty[:, 0]), 0.5, atol=1e-6)  # every frame was new
     slots = sorted(np.asarray(state.slots[0, :, 0]).tolist())

@@ -82,6 +82,8 @@ class TrainConfig:
                                 "there (the paper's 0.6M shift); 0: no pretraining")
     ec_pretrain_epochs: int = _f(10, "EC: pretraining updates (batch 64), as passes over the pretraining "
                                  "frames at one pair per 4 steps")
+    ec_beta: float = _f(0.5, "EC: the bonus is alpha * (beta - similarity); the original code's 0.5, which the EC "
+                        "paper gives for fixed-duration episodes (1 where an episode can end early)")
     ec_online: bool = _f(False, "EC: ECO, the reachability network also trains during the run, on pairs "
                          "of the policy's own recent frames")
     obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
@@ -137,7 +139,7 @@ class TrainConfig:
             bonus_norm=self.bonus_norm, forward_weight=self.forward_weight, obs_len=self.obs_len,
             act_len=self.act_len, sim_combine=self.sim_combine, sim_sequence=self.sim_sequence,
             sim_target=self.sim_target, sim_inverse=self.sim_inverse, ec_memory=self.ec_memory,
-            ec_width=self.ec_width, ec_embed=self.ec_embed, ec_online=self.ec_online,
+            ec_width=self.ec_width, ec_embed=self.ec_embed, ec_online=self.ec_online, ec_beta=self.ec_beta,
         )
 
     def hyper(self) -> Hyper:

@@ -28,7 +28,7 @@ def make_model(settings: NoveltySettings, num_actions: int):
         )
     if settings.algo == "ec":
         return EC(num_actions, capacity=settings.ec_memory, width=settings.ec_width, features=settings.ec_embed,
-                  online=settings.ec_online)
+                  online=settings.ec_online, beta=settings.ec_beta)
     return None
 
 

@@ -39,7 +39,10 @@ similarity aggregation                 90th       launcher_script.py ('percentil
                                        percentile episodic_memory.py ``similarity_to_memory``
                                                   (np.percentile(similarities, 90), linear)
 empty memory's similarity              0          episodic_memory.py ``similarity_to_memory``
-bonus offset beta                      0.5        curiosity_env_wrapper.py ``0.5 - s``
+bonus offset beta                      0.5        curiosity_env_wrapper.py ``0.5 - s``; the EC
+                                                  paper (sec. 2.2): 0.5 for fixed-duration
+                                                  episodes, 1 where an episode can end early
+                                                  (``--ec-beta``)
 add-to-memory rule                     s < 0.5    curiosity_env_wrapper.py (similarity_threshold
                                                   0.5, strict ``<``); at ``done`` the memory is
                                                   reset and the first frame always added, bonus 0
@@ -285,11 +288,11 @@ def memory_step(slots, count, key, a, b, start, head, beta: float = BETA, thresh
     return slots, count, key, novelty, s
 
 
-def scan_memory(state: ECState, a, b, starts, head):
+def scan_memory(state: ECState, a, b, starts, head, beta: float = BETA):
     """A rollout's frames against the memories, one step after another (``lax.scan`` over T,
     ``vmap`` over the N environments). ``a``/``b``: the frames' halves (T, N, hidden); ``starts``
     (T, N): the frame begins an episode. Returns (state, novelty (T, N), similarity (T, N))."""
-    step_env = jax.vmap(lambda sl, c, k, a_, b_, st: memory_step(sl, c, k, a_, b_, st, head))
+    step_env = jax.vmap(lambda sl, c, k, a_, b_, st: memory_step(sl, c, k, a_, b_, st, head, beta))
 
     def step(carry, xs):
         slots, count, key, novelty, s = step_env(*carry, *xs)
@@ -316,6 +319,7 @@ class EC:
     width: int = WIDTH
     features: int = EMBEDDING
     online: bool = False
+    beta: float = BETA  # the bonus's offset: alpha * (beta - similarity)
     window: int = 64  # ECO: frames each environment keeps across rollouts to draw pairs from
 
     stateful: ClassVar[bool] = True
@@ -367,7 +371,7 @@ class EC:
         def head(a_, slots):
             return net.apply(fixed["r"], a_, slots, method=ReachabilityNet.head)
 
-        state, novelty, _ = scan_memory(state, a, b, starts, head)
+        state, novelty, _ = scan_memory(state, a, b, starts, head, self.beta)
         scored = ~starts
         loss = jnp.zeros(())
         if self.online:

@@ -56,6 +56,7 @@ class NoveltySettings:
     ec_width: int = 64  # EC: filters of the ResNet-18's first stage
     ec_embed: int = 512  # EC: embedding size, and the comparator's fc
     ec_online: bool = False  # ECO: the reachability network also trains during the run
+    ec_beta: float = 0.5  # EC: the bonus's offset, alpha * (beta - similarity)
 
     def __post_init__(self):
         if self.algo != "a2c" and self.algo not in MODELS:
@@ -73,6 +74,8 @@ class NoveltySettings:
         for name in ("ec_memory", "ec_width", "ec_embed"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{flag(name)} must be a positive integer, got {getattr(self, name)}")
+        if not 0.0 <= self.ec_beta <= 1.0:
+            raise ValueError(f"{flag('ec_beta')} must lie in [0, 1] (a similarity's range), got {self.ec_beta}")
         if not (self.bonus_scale >= 0 and math.isfinite(self.bonus_scale)):
             raise ValueError(f"{flag('bonus_scale')} must be a finite number >= 0, got {self.bonus_scale}")
 
