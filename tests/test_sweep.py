@@ -64,7 +64,7 @@ def test_padded_windows_with_traced_lengths_give_the_model_built_for_them(sequen
 
     # one compiled program for every (H, L): lengths are traced
     wide_grad = jax.jit(jax.grad(wide_loss, has_aux=True))
-    for H, L in [(2, 1), (3, 2), (5, 4), (4, 1), (2, 4)]:
+    for H, L in [(2, 4), (4, 1), (5, 4)]:  # each length at its least, padded and unpadded
         small = SIM(A, obs_len=H, act_len=L, sequence=sequence)
         tl_s, x_s = _cut(tl, small.history), x[wide.history - small.history:]
         # the small model's parameters: the wide one's, its window-sized layers cut to the real slots
