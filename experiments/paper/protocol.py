@@ -354,6 +354,8 @@ def relevant(field: str, algo: str) -> bool:
         return algo == "sim"
     if field == "forward_weight":
         return algo in ("sim", "icm")
+    if field.startswith("ec_"):
+        return algo == "ec"
     if field.startswith("bonus_") or field in ("rl_weight", "obs_norm"):
         return algo != "a2c"
     return True
