@@ -232,7 +232,7 @@ def test_dmlab_simplification_matches_dmlab_step_by_step(size):
     # algorithm.cc (tests/dmlab_reference.py) on the same unsimplified mazes; at 21x21 almost
     # every maze has horseshoe bends to pull
     gen = DMLabMazeGenerator(height=size, width=size)
-    raw = jax.jit(jax.vmap(lambda k: gen.maze(k)["raw"]))(jax.random.split(jax.random.PRNGKey(size), 100))
+    raw = jax.jit(jax.vmap(lambda k: gen.maze(k)["raw"]))(jax.random.split(jax.random.PRNGKey(size), 50))
     got = np.asarray(jax.jit(jax.vmap(lambda g: dmlab_maze.simplify(g, size)))(raw))
     bends = 0
     for r, g in zip(np.asarray(raw), got):
@@ -240,7 +240,7 @@ def test_dmlab_simplification_matches_dmlab_step_by_step(size):
         want = dmlab_reference.simplify(rows)
         assert dmlab_maze.to_text(g).split("\n") == want
         bends += want != ["".join(x) for x in dmlab_reference.remove_dead_ends([list(x) for x in rows])]
-    assert bends > (80 if size == 21 else -1)
+    assert bends > (40 if size == 21 else -1)
 
 
 def test_dmlab_layout_walls_are_the_faces_between_open_and_walled_cells():
