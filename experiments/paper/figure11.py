@@ -11,13 +11,12 @@ Writes figure11.{png,csv,md} and figure11-curves.csv.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import RESULTS, Panel, Variant, figure_report, find_folders, read_all  # noqa: E402
+from report import Panel, Variant, figure_main  # noqa: E402
 
 DEFAULT_INPUTS = ["experiments/results/figure11-sweep/"]
 LENGTHS = (1, 2, 3, 4, 5)
@@ -32,13 +31,8 @@ PANELS = [
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python experiments/paper/figure11.py", description=__doc__.split("\n")[0])
-    parser.add_argument("folders", nargs="*", help=f"sweep or run folders (default: {' '.join(DEFAULT_INPUTS)})")
-    parser.add_argument("--out", type=Path, default=RESULTS / "paper-figure11", help="output folder")
-    args = parser.parse_args(argv)
-    points = read_all(find_folders(args.folders, DEFAULT_INPUTS))
-    figure_report("figure11", "Figure 11: SIM's action length L on maze-very-sparse", PANELS, points, args.out, "figure11")
-    return 0
+    return figure_main(argv, "figure11", "Figure 11: SIM's action length L on maze-very-sparse", PANELS,
+                       DEFAULT_INPUTS, __doc__.split("\n")[0])
 
 
 if __name__ == "__main__":

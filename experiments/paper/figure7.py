@@ -14,13 +14,12 @@ maze-very-sparse. Writes figure7.{png,csv,md} and figure7-curves.csv.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import RESULTS, Panel, Variant, figure_report, find_folders, read_all  # noqa: E402
+from report import Panel, Variant, figure_main  # noqa: E402
 
 DEFAULT_INPUTS = ["experiments/results/figure7/*/", "experiments/results/table1/maze-very-sparse-sim/",
                   "experiments/results/table1/maze-very-sparse-icm/"]
@@ -46,13 +45,7 @@ PANELS = [
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python experiments/paper/figure7.py", description=__doc__.split("\n")[0])
-    parser.add_argument("folders", nargs="*", help=f"run or sweep folders (default: {' '.join(DEFAULT_INPUTS)})")
-    parser.add_argument("--out", type=Path, default=RESULTS / "paper-figure7", help="output folder")
-    args = parser.parse_args(argv)
-    points = read_all(find_folders(args.folders, DEFAULT_INPUTS))
-    figure_report("figure7", "Figure 7: ablations of SIM on maze-very-sparse", PANELS, points, args.out, "figure7")
-    return 0
+    return figure_main(argv, "figure7", "Figure 7: ablations of SIM on maze-very-sparse", PANELS, DEFAULT_INPUTS, __doc__.split("\n")[0])
 
 
 if __name__ == "__main__":

@@ -14,13 +14,12 @@ figure9.{png,csv,md} and figure9-curves.csv.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from report import RESULTS, Panel, Variant, figure_report, find_folders, read_all  # noqa: E402
+from report import Panel, Variant, figure_main  # noqa: E402
 
 DEFAULT_INPUTS = ["experiments/results/figure9/*/", "experiments/results/figure9-*/",
                   "experiments/results/table1/maze-dense-sim/", "experiments/results/table1/maze-very-sparse-sim/"]
@@ -43,13 +42,7 @@ PANELS = [
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python experiments/paper/figure9.py", description=__doc__.split("\n")[0])
-    parser.add_argument("folders", nargs="*", help=f"run or sweep folders (default: {' '.join(DEFAULT_INPUTS)})")
-    parser.add_argument("--out", type=Path, default=RESULTS / "paper-figure9", help="output folder")
-    args = parser.parse_args(argv)
-    points = read_all(find_folders(args.folders, DEFAULT_INPUTS))
-    figure_report("figure9", "Figure 9: SIM's bonus scale beta", PANELS, points, args.out, "figure9")
-    return 0
+    return figure_main(argv, "figure9", "Figure 9: SIM's bonus scale beta", PANELS, DEFAULT_INPUTS, __doc__.split("\n")[0])
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ that would make them.
 
 from __future__ import annotations
 
+import argparse
 import csv
 import dataclasses
 import datetime as dt
@@ -449,4 +450,16 @@ def figure_report(name: str, title: str, panels: list[Panel], points: list[Point
     print_commands(points)
     announce(*paths)
     return paths
+
+
+def figure_main(argv: list[str] | None, figure: str, title: str, panels: list[Panel], default_inputs: list[str],
+                description: str) -> int:
+    """The command line every figure script has: ``python experiments/paper/FIGURE.py [FOLDER ...]
+    [--out DIR]``, reading the default inputs when no folder is named."""
+    parser = argparse.ArgumentParser(prog=f"python experiments/paper/{figure}.py", description=description)
+    parser.add_argument("folders", nargs="*", help=f"run or sweep folders (default: {' '.join(default_inputs)})")
+    parser.add_argument("--out", type=Path, default=RESULTS / f"paper-{figure}", help="output folder")
+    args = parser.parse_args(argv)
+    figure_report(figure, title, panels, read_all(find_folders(args.folders, default_inputs)), args.out, figure)
+    return 0
 
