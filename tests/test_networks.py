@@ -1,5 +1,7 @@
 """Flax modules: shapes, the im2col convolution, the LSTM reset."""
 
+import re
+
 import chex
 import flax.linen as nn
 import jax
@@ -8,7 +10,7 @@ import numpy as np
 import pytest
 
 from simjax.networks import ActorCritic, Encoder
-from simjax.networks.layers import PatchConv
+from simjax.networks.layers import PatchConv, orthogonal
 
 
 @pytest.mark.parametrize("kernel,stride,padding,size", [(3, 2, "SAME", 42), (3, 2, "SAME", 21), (8, 4, "VALID", 42),
@@ -58,3 +60,16 @@ def test_lstm_carry_is_reset_where_an_episode_starts():
     # and before the reset, env 0 still carried its (noisy) memory
     _, from_zero, _ = net.apply(params, net.initial_carry(N), obs[:3], jnp.zeros((3, N), bool))
     assert not np.allclose(logits[:3, 0], from_zero[:, 0], atol=1e-6)
+
+
+def test_orthogonal_draws_flax_values_member_by_member_under_vmap():
+    # the XLA:CPU hang: flax's initialiser, vmapped over seeds, is one batched LAPACK QR per
+    # matrix, and two of those side by side deadlocked jaxlib 0.10.2's thread pool
+    keys = jax.random.split(jax.random.PRNGKey(3), 3)
+    for shape, scale in (((256, 64), 1.0), ((8, 32), 0.01)):
+        vmapped = jax.jit(jax.vmap(lambda k: orthogonal(scale)(k, shape)))
+        one_by_one = np.stack([nn.initializers.orthogonal(scale)(k, shape) for k in keys])
+        np.testing.assert_array_equal(vmapped(keys), one_by_one)
+        qr_batch_dims = [re.search(r'num_batch_dims = "(\d+)"', line).group(1)
+                         for line in vmapped.lower(keys).as_text().splitlines() if "lapack_sgeqrf" in line]
+        assert qr_batch_dims == ["0"], qr_batch_dims  # one QR, of one matrix at a time

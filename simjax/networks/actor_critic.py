@@ -17,7 +17,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from simjax.networks.layers import PatchConv
+from simjax.networks.layers import PatchConv, orthogonal
 
 
 class Encoder(nn.Module):
@@ -53,7 +53,7 @@ class ResetLSTM(nn.Module):
     def __call__(self, carry, inputs):
         x, reset = inputs
         carry = jax.tree.map(lambda c: jnp.where(reset[:, None], jnp.zeros_like(c), c), carry)
-        carry, h = nn.OptimizedLSTMCell(self.features)(carry, x)
+        carry, h = nn.OptimizedLSTMCell(self.features, recurrent_kernel_init=orthogonal())(carry, x)
         return carry, h
 
     @staticmethod
@@ -78,10 +78,10 @@ class ActorCritic(nn.Module):
         chex.assert_equal_shape_prefix([obs, reset], 2)
         x = Encoder(self.embed, image=obs.ndim == 5)(obs)
         carry, h = ResetLSTM(self.hidden)(carry, (x, reset))
-        logits = nn.Dense(self.num_actions, kernel_init=nn.initializers.orthogonal(0.01))(h)
-        value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0))(h)[..., 0]
+        logits = nn.Dense(self.num_actions, kernel_init=orthogonal(0.01))(h)
+        value = nn.Dense(1, kernel_init=orthogonal(1.0))(h)[..., 0]
         if self.two_values:  # a separate head: one-value checkpoints keep their parameter names
-            bonus_value = nn.Dense(1, kernel_init=nn.initializers.orthogonal(1.0), name="IntrinsicValue")(h)
+            bonus_value = nn.Dense(1, kernel_init=orthogonal(1.0), name="IntrinsicValue")(h)
             value = jnp.stack([value, bonus_value[..., 0]], axis=-1)
         return carry, logits, value
 

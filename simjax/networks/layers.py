@@ -6,6 +6,15 @@ every ``lax.scan`` over updates is) runs ~14x slower than outside one (measured:
 0.31 s per step for conv 16 -> conv 32 over 1,344 frames); the im2col form's gradient is
 slices, pads and matmuls, which stay fast in loops (0.25 s for the same step). Its parameters
 have ``nn.Conv``'s names, shapes and initialisers, and its outputs match ``nn.Conv`` (tested).
+
+``orthogonal`` is flax's orthogonal initialiser, drawn one member at a time under ``jax.vmap``.
+Vmapped (over seeds, as every run initialises), flax's draws one batched LAPACK QR, and
+jaxlib 0.10.2's batched QR splits its batch over XLA:CPU's intra-op thread pool and blocks a
+pool thread until the parts are done: two such QRs side by side took both threads of a 2-core
+machine and waited on each other forever, the XLA:CPU hang of docs/troubleshooting.md (a
+seed-vmapped SIM ``init`` hung 4 times in 4 fresh processes with XLA's default flags). Drawn
+member by member (a ``lax.map`` over the keys), each QR has a batch of one; the values are
+flax's, bit for bit (tested).
 """
 
 from __future__ import annotations
@@ -13,7 +22,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import flax.linen as nn
+import jax
 import jax.numpy as jnp
+
+
+def orthogonal(scale: float = 1.0) -> nn.initializers.Initializer:
+    """``nn.initializers.orthogonal(scale)``, whose vmapped calls draw member by member."""
+    draw_one = nn.initializers.orthogonal(scale)
+
+    def init(key, shape, dtype=jnp.float32):
+        @jax.custom_batching.custom_vmap
+        def draw(k):
+            return draw_one(k, shape, dtype)
+
+        @draw.def_vmap
+        def draw_each(axis_size, in_batched, keys):  # the key is the only input, so it is the batched one
+            return jax.lax.map(draw, keys), True
+
+        return draw(key)
+
+    return init
 
 
 def extract_patches(x: jnp.ndarray, kernel: int, stride: int, padding: str) -> jnp.ndarray:

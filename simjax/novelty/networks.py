@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.networks.layers import PatchConv, conv_stack
+from simjax.networks.layers import PatchConv, conv_stack, orthogonal
 
 SQRT2 = float(np.sqrt(np.float32(2.0)))  # float32's sqrt(2), in numpy: no computation on import
 
@@ -29,7 +29,7 @@ class RNDTarget(nn.Module):
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        init = nn.initializers.orthogonal(SQRT2)
+        init = orthogonal(SQRT2)
         for kernel, stride in ((8, 4), (4, 2), (3, 1)):
             x = nn.leaky_relu(PatchConv(32, kernel, stride, "VALID", kernel_init=init)(x))
         return nn.Dense(self.features, kernel_init=init)(_flatten(x))
@@ -70,7 +70,7 @@ class WindowLSTM(nn.Module):
         self.input = nn.Dense(4 * self.hidden, use_bias=False, name="input")
 
         def gate_blocks(key, shape, dtype=jnp.float32):
-            init = nn.initializers.orthogonal()
+            init = orthogonal()
             return jnp.concatenate([init(k, (shape[0], self.hidden), dtype) for k in jax.random.split(key, 4)], axis=1)
 
         self.recurrent = self.param("recurrent", gate_blocks, (self.hidden, 4 * self.hidden))
