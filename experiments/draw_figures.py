@@ -18,7 +18,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simjax import runtime  # noqa: E402
 from simjax.envs import make, melon, mywayhome_map  # noqa: E402
 from simjax.envs.motion import Pose  # noqa: E402
 from simjax.envs.topdown import draw_topdown  # noqa: E402
@@ -34,7 +33,6 @@ VIEWS = [  # (caption, x, y, heading in degrees)
 
 
 def main():
-    runtime.configure()
     DOCS.mkdir(exist_ok=True)
     env = make("maze-dense")
     fig, ax = plt.subplots(figsize=(7, 6))

@@ -33,7 +33,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax import runtime
 from simjax.envs import mywayhome_layout, mywayhome_map, random_walks, raycaster
 from simjax.envs.maze import MazeEnv, MazeTask
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread
@@ -121,7 +120,6 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.calibrate < 0 or args.walks < 1 or args.steps < 1:
         parser.error("need --calibrate >= 0, --walks >= 1 and --steps >= 1")
-    runtime.configure()
     meter = Meter(args.walks, args.steps)
     start = time.time()
     print(f"spread of the RND target (half its summed variance; 4 random targets), {args.walks} walks "

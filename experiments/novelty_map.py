@@ -35,7 +35,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax import runtime  # noqa: E402
 from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, random_walks  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
@@ -57,7 +56,6 @@ def main(argv=None) -> int:
     parser.add_argument("--walks", type=int, default=16, help="random walks per spawn spot")
     parser.add_argument("--steps", type=int, default=60, help="steps per walk")
     args = parser.parse_args(argv)
-    runtime.configure()
     try:
         restored = restore(args.run)
     except FileNotFoundError as err:

@@ -42,7 +42,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from novelty_map import MYWAYHOME_TASKS
 
-from simjax import runtime
 from simjax.agents import sampling_policy
 from simjax.envs import given_actions, mywayhome_map, raycaster, rollout, starts_episode, uniform_policy
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames
@@ -60,7 +59,6 @@ def main(argv=None) -> int:
     parser.add_argument("--chunks", type=int, default=0, help="part 2: chunks of novelty-only training")
     parser.add_argument("--chunk-updates", type=int, default=40)
     args = parser.parse_args(argv)
-    runtime.configure()
     if args.spot not in mywayhome_map.SPAWN_SPOTS:
         parser.error(f"unknown spawn spot {args.spot}; known: {sorted(mywayhome_map.SPAWN_SPOTS)}")
     if args.chunks < 0 or args.chunk_updates < 1:

@@ -13,9 +13,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax import runtime
-
-runtime.configure()
 from simjax.envs import make, vizdoom_ref  # noqa: E402
 
 n_sim = int(sys.argv[1]) if len(sys.argv) > 1 else 2000

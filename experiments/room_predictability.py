@@ -25,7 +25,6 @@ import time
 import jax
 import optax
 
-from simjax import runtime
 from simjax.agents import TrainConfig
 from simjax.agents.a2c import ADAM_EPS
 from simjax.envs import (
@@ -87,7 +86,6 @@ def main(argv=None) -> int:
     parser.add_argument("--look-as", type=int, nargs=2, metavar=("I", "J"), default=None,
                         help="draw texture I with texture J's look")
     args = parser.parse_args(argv)
-    runtime.configure()
     unknown = [s for s in args.spots if s not in mywayhome_map.SPAWN_SPOTS]
     if unknown:
         parser.error(f"unknown spawn spots {unknown}; known: {sorted(mywayhome_map.SPAWN_SPOTS)}")

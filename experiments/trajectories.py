@@ -19,7 +19,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax import runtime
 from simjax.agents import sampling_policy
 from simjax.envs import rollout, uniform_policy
 from simjax.runs import restore
@@ -63,7 +62,6 @@ def main(argv=None) -> int:
     parser.add_argument("--envs", type=int, default=16)
     parser.add_argument("--random", action="store_true", help="also the uniform random policy")
     args = parser.parse_args(argv)
-    runtime.configure()
     try:
         restored = restore(args.run)
     except FileNotFoundError as err:

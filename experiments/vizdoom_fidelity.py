@@ -26,7 +26,6 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simjax import runtime  # noqa: E402
 from simjax.envs import fidelity, make, mywayhome_layout, vizdoom_ref  # noqa: E402
 from simjax.envs.maze import MazeEnv, MazeTask  # noqa: E402
 from simjax.envs.motion import Pose  # noqa: E402
@@ -41,7 +40,6 @@ def main():
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "experiments" / "results" / "vizdoom-fidelity")
     args = parser.parse_args()
-    runtime.configure()
     t0 = time.time()
     env = make("maze-dense")
     walks = fidelity.viz_walks(args.walks, args.steps, args.first_seed)

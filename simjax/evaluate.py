@@ -303,7 +303,6 @@ def _version(package: str) -> str | None:
 
 
 def main(argv=None) -> int:
-    runtime.configure()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)

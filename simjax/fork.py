@@ -14,7 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from simjax import flags, runtime
+from simjax import flags
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,7 +26,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    runtime.configure()
     parser = build_parser()
     args = parser.parse_args(argv)
     changes = flags.given_settings(args)

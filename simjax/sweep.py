@@ -16,11 +16,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from simjax import flags, runtime
+from simjax import flags
 from simjax.novelty.settings import flag
-from simjax.runs import folder, stall
+from simjax.runs import folder
 from simjax.runs.grid import check_sweep
-from simjax.train import new_run_folder, worker_command
+from simjax.train import new_run_folder, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,9 +32,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None, help="run folder (default: runs/ENV-ALGO-sweep-TIME)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--tensorboard", action="store_true", help="also write TensorBoard event files")
-    parser.add_argument("--max-restarts", type=int, default=20, help="restarts after XLA stalls (default: 20)")
-    parser.add_argument("--stall-timeout", type=float, default=300.0,
-                        help="seconds the first compiled call may take before it counts as stalled (default: 300)")
     return parser
 
 
@@ -61,15 +58,11 @@ def parse_sweep(argv=None):
 
 
 def main(argv=None) -> int:
-    runtime.split_cpu()  # one XLA device per core: members shard over them (BENCHMARKS.md: x1.06 for 2 seeds)
-    runtime.configure()
     config, grid, sweep, out, args = parse_sweep(argv)
-    out.mkdir(parents=True, exist_ok=True)
-    folder.write_config(out, config, sweep=sweep)
     if not args.quiet:
         print(f"sweep: {len(grid)} points x {config.num_seeds} seed(s) = {len(grid) * config.num_seeds} members, "
               "one compiled program", file=sys.stderr)
-    return stall.supervise(worker_command(out, args), out, args.max_restarts, args.stall_timeout)
+    return train(config, out, args, sweep)
 
 
 if __name__ == "__main__":

@@ -3,23 +3,23 @@
 Config in, run folder out (``simjax.runs.folder`` lists its files); ``--resume`` continues a
 plain run or a sweep (``simjax.sweep``). Every run setting is a
 flag of ``TrainConfig``; bad values and tasks the learner cannot read fail here, before
-anything compiles or is written. A stopped run (Ctrl-C) keeps every row it wrote and still
-saves its checkpoint and curve; ``--resume FOLDER`` goes on from there.
-
-The run itself goes on in a worker process that a supervisor restarts from the checkpoint
-when XLA:CPU stalls (``simjax.runs.stall``); ``--no-supervise`` trains in this process.
+anything compiles or is written. A stopped run (Ctrl-C, or SIGTERM as ``kill`` and job
+schedulers send) keeps every row it wrote and still saves its checkpoint and curve;
+``--resume FOLDER`` goes on from there.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
+import signal
 import sys
 from pathlib import Path
 
-from simjax import flags, runtime
+from simjax import flags
 from simjax.agents import TrainConfig, make_trainer
-from simjax.runs import Diverged, folder, run, stall
+from simjax.runs import Diverged, folder, run
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,12 +34,6 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write the metrics as TensorBoard event files in OUT/tensorboard (tensorboardX)")
     parser.add_argument("--resume", type=Path, default=None,
                         help="continue the run in this folder from its checkpoint (no run settings, no --out)")
-    parser.add_argument("--no-supervise", action="store_true",
-                        help="train in this process, without restarting it when XLA stalls")
-    parser.add_argument("--max-restarts", type=int, default=20, help="restarts after XLA stalls (default: 20)")
-    parser.add_argument("--stall-timeout", type=float, default=300.0,
-                        help="seconds the first compiled call may take before it counts as stalled (default: 300)")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return parser
 
 
@@ -83,33 +77,56 @@ def new_run_folder(parser: argparse.ArgumentParser, config: TrainConfig, out: Pa
     return out
 
 
-def worker_command(out: Path, args: argparse.Namespace):
-    """The command of a training process that resumes ``out``, its first call allowed ``limit`` s."""
-    def command(limit: float) -> list[str]:
-        return ([sys.executable, "-m", "simjax.train", "--resume", str(out), "--worker", "--stall-timeout", str(limit)]
-                + ["--quiet"] * args.quiet + ["--tensorboard"] * args.tensorboard)
-
-    return command
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-def main(argv=None) -> int:
-    runtime.split_cpu()  # one XLA device per core: members shard over them (BENCHMARKS.md: x1.06 for 2 seeds)
-    runtime.configure()
-    config, out, args = parse_config(argv)
-    if args.worker or args.no_supervise:
+@contextlib.contextmanager
+def stopped_like_ctrl_c():
+    """Within it, SIGTERM (what ``kill``, ``timeout`` and job schedulers send) stops the process
+    as Ctrl-C does, with a ``KeyboardInterrupt`` in the main thread, so that a run saves its
+    rows and checkpoint. Only the first SIGINT or SIGTERM interrupts: later ones are ignored, so
+    a second signal cannot cut the saving short (SIGKILL still ends the process). Yields a dict
+    whose "signal" is the signal that stopped it, or None."""
+    previous = {s: signal.getsignal(s) for s in SIGNALS}
+    got = {"signal": None}
+
+    def stop(signum, frame):
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        got["signal"] = signum
+        raise KeyboardInterrupt
+
+    for s in SIGNALS:
+        signal.signal(s, stop)
+    try:
+        yield got
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def train(config: TrainConfig, out: Path, args: argparse.Namespace, sweep: dict | None = None,
+          resume: bool = False) -> int:
+    """Train into ``out`` (``resume``: go on from its checkpoint); the command's exit status:
+    0 when finished, 130 when stopped by Ctrl-C or SIGTERM (its rows and checkpoint saved), 1
+    when the run diverged."""
+    with stopped_like_ctrl_c() as got:
         try:
-            run(config, out, args.quiet, resume=args.resume is not None,
-                stall_limit=args.stall_timeout if args.worker else None, tensorboard=args.tensorboard,
-                sweep=folder.load_sweep(out) if args.resume is not None else None)
+            run(config, out, args.quiet, resume=resume, tensorboard=args.tensorboard, sweep=sweep)
         except Diverged as err:
             print(f"python -m simjax.train: error: {err}", file=sys.stderr)
             return 1
-        print(f"run folder: {out}")
-        return 0
-    if args.resume is None:  # write config.json here, so the worker resumes what was asked
-        out.mkdir(parents=True, exist_ok=True)
-        folder.write_config(out, config)
-    return stall.supervise(worker_command(out, args), out, args.max_restarts, args.stall_timeout)
+        except KeyboardInterrupt:  # stopped before the training loop (compiling): the folder keeps what it has
+            print(f"\nstopped; run folder: {out}", file=sys.stderr)
+            return 130
+    print(f"run folder: {out}")
+    return 130 if got["signal"] is not None else 0
+
+
+def main(argv=None) -> int:
+    config, out, args = parse_config(argv)
+    resume = args.resume is not None
+    return train(config, out, args, folder.load_sweep(out) if resume else None, resume)
 
 
 if __name__ == "__main__":

@@ -335,7 +335,7 @@ def test_train_ec_end_to_end(tmp_path, capsys):
     code = cli.main(["--algo", "ec", "--env", "maze-tiny", "--num-envs", "2", "--rollout-len", "4",
                      "--ec-width", "4", "--ec-embed", "8", "--ec-memory", "8", "--ec-pretrain-steps", "200",
                      "--ec-pretrain-epochs", "3", "--total-steps", "216", "--log-every", "8",
-                     "--out", str(out), "--no-supervise", "--quiet"])
+                     "--out", str(out), "--quiet"])
     assert code == 0
     with open(out / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
@@ -379,7 +379,7 @@ def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus
     trainer = make_trainer(config)
     fresh = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
     point1 = jax.tree.map(lambda x: x[2:], fresh)
-    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True, watchdog=None).params["novelty"]
+    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True).params["novelty"]
     saved = load_checkpoint(out)["runner"]["params"]["novelty"]
     chex.assert_trees_all_close(jax.tree.map(lambda x: x[2:], saved), jax.device_get(own), rtol=1e-6, atol=1e-7)
     first = jax.tree.leaves(saved)[0]

@@ -4,16 +4,14 @@ import os
 import subprocess
 import sys
 
-from simjax import runtime
-
 MODULES = ("simjax", "simjax.envs", "simjax.agents", "simjax.novelty", "simjax.runs", "simjax.train",
            "simjax.fork", "simjax.evaluate", "simjax.plotting")
 REPORT = "import os, jax\nprint(os.environ.get('XLA_FLAGS'))\nprint(jax.config.read('jax_cpu_enable_async_dispatch'))\n"
 
 
 def _python(code: str, **env) -> list[str]:
-    """The stdout lines of ``code`` in a fresh interpreter, without this process's XLA settings."""
-    clean = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "SIMJAX_KEEP_XLA_DEFAULTS")}
+    """The stdout lines of ``code`` in a fresh interpreter, without this process's XLA flags."""
+    clean = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
                          env={**clean, **env}, check=True)
     return out.stdout.splitlines()
@@ -26,21 +24,11 @@ def test_importing_simjax_leaves_xla_flags_and_jax_config_alone():
 
 
 def test_importing_simjax_starts_no_computation():
-    """``runtime.configure()`` in a command's main only works if no import has started XLA's
-    CPU backend already (it reads XLA_FLAGS when it starts)."""
+    """XLA reads XLA_FLAGS when its CPU backend starts: a user's flags set after ``import simjax``
+    only count if no import has started it."""
     code = (f"import importlib\nfor m in {MODULES!r}: importlib.import_module(m)\n"
             "from jax._src import xla_bridge\nprint(sorted(xla_bridge._backends))")
     assert _python(code) == ["[]"]
-
-
-def test_configure_applies_the_workaround_unless_told_to_keep_the_defaults():
-    code = "from simjax import runtime\nruntime.configure()\n" + REPORT
-    flags, dispatch = _python(code)
-    assert flags.split() == list(runtime.XLA_FLAGS) and dispatch == "False"
-    given = "--xla_cpu_multi_thread_eigen=true"  # a flag the user set keeps the user's value
-    flags, _ = _python(code, XLA_FLAGS=given)
-    assert flags.split() == [given, runtime.XLA_FLAGS[0]]
-    assert _python(code, SIMJAX_KEEP_XLA_DEFAULTS="1") == ["None", "True"]
 
 
 def test_a_normal_run_prints_no_import_failures():

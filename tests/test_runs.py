@@ -3,7 +3,12 @@ diverges."""
 
 import csv
 import glob
+import os
+import signal
 import struct
+import subprocess
+import sys
+import time
 
 import chex
 import jax
@@ -61,7 +66,7 @@ def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
     out = tmp_path / "run"
     assert cli.main(["--env", "maze-tiny", "--num-envs", "4", "--rollout-len", "5", "--total-steps", "60",
                      "--log-every", "20", "--num-seeds", "2", "--algo", "sim", "--obs-len", "2", "--act-len", "1",
-                     "--out", str(out), "--no-supervise", "--quiet", "--tensorboard"]) == 0
+                     "--out", str(out), "--quiet", "--tensorboard"]) == 0
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert len(rows) == 6
     checked = 0
@@ -84,7 +89,7 @@ def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
 def test_a_diverging_run_stops_at_its_first_non_finite_row_and_keeps_the_last_finite_checkpoint(tmp_path, capsys):
     out = tmp_path / "run"
     code = cli.main(["--env", "maze-tiny", "--total-steps", "1280", "--log-every", "640", "--learning-rate", "1e8",
-                     "--max-grad-norm", "1e9", "--out", str(out), "--no-supervise", "--quiet"])
+                     "--max-grad-norm", "1e9", "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
     assert code == 1
     assert "error: training diverged in the updates up to 1,280 agent steps" in err, err
@@ -95,3 +100,40 @@ def test_a_diverging_run_stops_at_its_first_non_finite_row_and_keeps_the_last_fi
     ckpt = runs.load_checkpoint(out)
     assert ckpt["env_steps"] == 640
     chex.assert_tree_all_finite(ckpt["runner"]["params"])
+
+
+def _processes_naming(text: str) -> list[int]:
+    """The pids of the live processes whose command line contains ``text``."""
+    found = []
+    for cmdline in glob.glob("/proc/[0-9]*/cmdline"):
+        try:
+            with open(cmdline, "rb") as f:
+                args = f.read().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:  # it ended while we looked
+            continue
+        if text in args:
+            found.append(int(cmdline.split("/")[2]))
+    return found
+
+
+def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path):
+    # what `timeout` or a job scheduler sends
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "simjax.train", "--env", "maze-tiny", "--num-envs", "4",
+                             "--rollout-len", "5", "--total-steps", "100000000", "--log-every", "20", "--out", str(out),
+                             "--quiet"], start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.time() + 300
+        while not ((out / "metrics.csv").exists() and len((out / "metrics.csv").read_text().splitlines()) >= 3):
+            assert proc.poll() is None and time.time() < deadline, proc.stderr.read().decode()
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        code = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert code == 130, proc.stderr.read().decode()
+    assert _processes_naming(str(out)) == []  # nothing left training
+    rows = list(csv.DictReader(open(out / "metrics.csv")))
+    assert runs.load_checkpoint(out)["env_steps"] == int(rows[-1]["env_steps"]) >= 40
+    assert (out / "curve.png").exists() and not list(out.glob("*.tmp"))

@@ -230,8 +230,6 @@ def test_sharded_over_two_devices_gives_the_same_metrics(tmp_path):
     sharded over both give the numbers they give on one."""
     script = textwrap.dedent(f"""
         import csv, jax
-        from simjax import runtime
-        runtime.configure()
         from simjax import runs
         from simjax.runs.grid import check_sweep
         assert len(jax.local_devices()) == 2

@@ -1,8 +1,7 @@
 """Runs on disk: the run folder (``folder``: config, metrics, checkpoint, ``restore``),
-training into one (``training``), forking one (``fork``), the progress line (``progress``) and
-the guard against XLA:CPU stalls (``stall``). The command lines (``simjax.train``,
-``simjax.fork``, ``simjax.evaluate``) and the experiments sit on top of this package; it sits on
-top of the learner (``simjax.agents``)."""
+training into one (``training``), forking one (``fork``) and the progress line (``progress``).
+The command lines (``simjax.train``, ``simjax.fork``, ``simjax.evaluate``) and the experiments
+sit on top of this package; it sits on top of the learner (``simjax.agents``)."""
 
 from simjax.runs.folder import (
     METRIC_COLUMNS,

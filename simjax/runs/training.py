@@ -2,22 +2,24 @@
 
 Each compiled call trains ``config.updates_per_log`` updates of every member of the batch, one
 per sweep point and seed (``simjax.runs.grid``; a plain run's members are its seeds), as one
-``jax.vmap``; its metrics become one row per member in metrics.csv, and the checkpoint is rewritten to match the
-last row on disk, so a run stopped by Ctrl-C, killed, or stalled (``simjax.runs.stall``) goes
-on from there bit for bit with ``resume``. A run whose losses, gradient norm or parameters
-stop being finite ends at that row (``Diverged``), keeping the last finite checkpoint.
+``jax.vmap``; its metrics become one row per member in metrics.csv, and the checkpoint is
+rewritten to match the last row on disk, so a run stopped by Ctrl-C or SIGTERM, or killed,
+goes on from there bit for bit with ``resume``. A run whose losses, gradient norm or
+parameters stop being finite ends at that row (``Diverged``), keeping the last finite
+checkpoint.
 
-With several local devices (GPUs, or CPU devices made by ``simjax.runtime.configure``), the
-members are sharded over them (a ``jax.sharding.Mesh`` over the batch axis); the program, and
-every member's numbers, are the same as on one device.
+With several local devices (GPUs, or CPU devices made with
+``--xla_force_host_platform_device_count``), the members are sharded over them (a
+``jax.sharding.Mesh`` over the batch axis); the program, and every member's numbers, are the
+same as on one device.
 
 EC first pretrains its reachability network (``simjax.novelty.ec_pretrain``), call by call,
-each call watched like a chunk, its loss and accuracy written to pretrain.csv; the checkpoint
-after it is at ``config.step_offset`` agent steps, where metrics.csv's rows begin. A run stopped
-during the pretraining starts it again. The pretraining is done once per seed, not once per
-member: it reads nothing a sweep varies (a random policy, EC's own Adam), and every point's
-member of a seed starts from the same key (``grid.batch_inputs``), so each member gets the
-network its seed's pretraining gives, the one it would have trained itself.
+its loss and accuracy written to pretrain.csv; the checkpoint after it is at
+``config.step_offset`` agent steps, where metrics.csv's rows begin. A run stopped during the
+pretraining starts it again. The pretraining is done once per seed, not once per member: it
+reads nothing a sweep varies (a random policy, EC's own Adam), and every point's member of a
+seed starts from the same key (``grid.batch_inputs``), so each member gets the network its
+seed's pretraining gives, the one it would have trained itself.
 """
 
 from __future__ import annotations
@@ -42,15 +44,11 @@ from simjax.runs.folder import (
 )
 from simjax.runs.grid import batch_inputs, grid_of, members
 from simjax.runs.progress import Progress, mean_over_seeds
-from simjax.runs.stall import StallWatchdog
 
 # the learnt quantities of a row: none of them is NaN or infinite in a sound run (a row's
 # success ratio or episode length is NaN where no episode ended; that is no fault)
 FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm", "bonus_mean",
                 "forward_loss", "inverse_loss")
-
-
-SLOWEST_RATE = 200.0  # agent steps/s below which a first compiled call counts as stalled
 
 
 class Diverged(RuntimeError):
@@ -93,7 +91,7 @@ def batch_sharding(batch: int, devices=None):
 PRETRAIN_COLUMNS = ("env_steps", "seed", "loss", "accuracy", "usable_pairs", "wall_s")
 
 
-def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool, watchdog: StallWatchdog | None,
+def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
              devices=None, sharding=None):
     """EC's pretraining for every member of ``runner`` (leading axis: member, point-major, so
     member ``p * len(seeds) + s`` is seed ``seeds[s]`` of point ``p``), done once per seed on
@@ -101,14 +99,6 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool, watch
     one compiled call at a time; each chunk's mean loss and accuracy (on each batch before its
     update) become a row per seed of ``out``/pretrain.csv. Returns the runner (sharded by
     ``sharding``) with the pretrained network and its episodic memories restarted with it."""
-    def watched(fn, *args):
-        if watchdog:
-            watchdog.begin()
-        result = jax.block_until_ready(fn(*args))
-        if watchdog:
-            watchdog.end(record=False)  # a long pretraining call must not shorten the chunks' limit
-        return result
-
     plan, num_seeds = pretrainer.plan, len(seeds)
     num_members = len(runner.key)
     keys = np.asarray(jax.device_get(runner.key)).reshape(num_members // num_seeds, num_seeds, -1)
@@ -126,10 +116,10 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool, watch
         print(f"pretraining EC's reachability network: {plan.env_steps:,} random-policy steps per seed, "
               f"{plan.updates:,} updates of {pretrainer.batch} pairs", file=sys.stderr, flush=True)
     for c in range(plan.num_chunks):
-        state = watched(collect, state)
+        state = jax.block_until_ready(collect(state))
         per_call = []
         for _ in range(plan.calls):
-            state, metrics = watched(train, state)
+            state, metrics = train(state)
             per_call.append(jax.device_get(metrics))
         metrics = {k: np.mean([np.asarray(m[k]) for m in per_call], axis=0) for k in per_call[0]}
         steps = (c + 1) * plan.chunk_len * plan.num_envs
@@ -152,10 +142,10 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool, watch
 
 
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
-        stall_limit: float | None = None, tensorboard: bool = False, sweep: dict | None = None,
+        tensorboard: bool = False, sweep: dict | None = None,
         devices=None) -> Path:
     """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
-    (bit for bit the run it would have been). ``stall_limit``: see ``StallWatchdog``;
+    (bit for bit the run it would have been);
     ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``);
     ``sweep``: field -> values, every combination trained side by side (``check_sweep`` made
     ``config`` from them); ``devices``: the devices to shard the members over (default: all).
@@ -182,11 +172,6 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     sharding = batch_sharding(len(batch), devices)
     shard = {} if sharding is None else {"in_shardings": sharding, "out_shardings": sharding}
     steps_per_chunk = config.updates_per_log * config.steps_per_update
-    # a first call is a stall only once it is slower than SLOWEST_RATE: a sweep's calls train
-    # every member, so they take members x longer than one seed's
-    watchdog = StallWatchdog(max(stall_limit, len(batch) * steps_per_chunk / SLOWEST_RATE)) if stall_limit else None
-    if watchdog:
-        watchdog.begin()
     if resume and (out / "checkpoint.msgpack").exists():
         ckpt = load_checkpoint(out, runner_template(trainer, config, sweep))
         runner, done_steps = jax.device_put(ckpt["runner"], sharding), int(ckpt["env_steps"])
@@ -212,27 +197,21 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
         print(f"{what}: {config.algo} on {config.env} ({points}{config.num_seeds} seed(s), "
               f"{config.num_envs} envs each{on}); run folder {out}", file=sys.stderr, flush=True)
     write_checkpoint(out, runner, done_steps, seeds)
-    if watchdog:
-        watchdog.end(record=False)
     pretrain_s = 0.0
     if trainer.pretrain is not None and done_steps < config.step_offset:
         pretrain_s = time.perf_counter()
-        runner = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, watchdog, devices,
+        runner = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, devices,
                           sharding)
         done_steps, pretrain_s = config.step_offset, time.perf_counter() - pretrain_s
         write_checkpoint(out, runner, done_steps, seeds)
-    compiled = chunk.lower(runner).compile()  # compiling is not watched, only running
+    compiled = chunk.lower(runner).compile()
     start = time.perf_counter() - wall_before - pretrain_s  # wall_s counts the pretraining too
     log = MetricsLog(out, rows, tensorboard, labels=tuple(sweep))
     try:
         last = time.perf_counter()
         while done_steps < total:
-            if watchdog:
-                watchdog.begin()
             next_runner, metrics = compiled(runner)
             metrics = jax.device_get(metrics)
-            if watchdog:
-                watchdog.end()
             now = time.perf_counter()
             steps = done_steps + steps_per_chunk
             bad = non_finite(metrics, jax.device_get(next_runner.params), names)
