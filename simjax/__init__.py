@@ -1,7 +1,7 @@
 """simjax: curiosity-driven exploration for partially observable worlds, end to end in JAX.
 
-Importing simjax changes nothing global; the command lines apply the process-wide JAX
-settings they need with ``simjax.runtime.configure()``.
+Importing simjax changes nothing global: no XLA flags, no ``jax.config`` setting, no
+computation (tested).
 """
 
 __version__ = "0.1.0"

@@ -1,11 +1,8 @@
 """Process-wide JAX settings for the command lines, applied by their mains, never on import.
 
-XLA runs with its default flags. An XLA:CPU hang that once made simjax turn off XLA's
-multi-threaded Eigen pool, its concurrency-optimised scheduler and asynchronous dispatch, and
-guard every run with a restarting supervisor, was a deadlock in jaxlib 0.10.2's batched LAPACK
-QR under a seed-vmapped ``init``; the members are now initialised one at a time
-(``simjax.agents.init_members``), and the hang experiment of docs/troubleshooting.md saw no
-hang with the defaults since.
+XLA runs with its default flags: the XLA:CPU deadlock that once needed flags and a restarting
+supervisor came from batched LAPACK QRs in the seed-vmapped ``init`` and is gone at its source
+(``simjax.networks.layers.orthogonal``; docs/troubleshooting.md).
 """
 
 from __future__ import annotations
