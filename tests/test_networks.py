@@ -1,5 +1,6 @@
 """Flax modules: shapes, the im2col convolution, the LSTM reset."""
 
+import functools
 import re
 
 import chex
@@ -67,7 +68,7 @@ def test_orthogonal_draws_flax_values_member_by_member_under_vmap():
     # matrix, and two of those side by side deadlocked jaxlib 0.10.2's thread pool
     keys = jax.random.split(jax.random.PRNGKey(3), 3)
     for shape, scale in (((256, 64), 1.0), ((8, 32), 0.01)):
-        vmapped = jax.jit(jax.vmap(lambda k: orthogonal(scale)(k, shape)))
+        vmapped = jax.jit(jax.vmap(functools.partial(orthogonal(scale), shape=shape)))
         one_by_one = np.stack([nn.initializers.orthogonal(scale)(k, shape) for k in keys])
         np.testing.assert_array_equal(vmapped(keys), one_by_one)
         qr_batch_dims = [re.search(r'num_batch_dims = "(\d+)"', line).group(1)
