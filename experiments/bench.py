@@ -2,29 +2,32 @@
 
 Measures, each as the median of several calls of one compiled program (compile time apart):
 - the environment alone (Doom's motion, 4 tics, plus one render per agent step, random
-  actions, auto-reset) at 256, 1024 and 4096 environments, as agent steps per second; at 1024
-  environments the same MyWayHome task drawn with the invented looks instead of the Freedoom
-  textures, and ``melon`` and ``explore-goals``;
+  actions, auto-reset) at 16 and 48 environments (what a run of 1 and 3 seeds steps), 256,
+  1024 and 4096, as agent steps per second; at 1024 environments the same MyWayHome task drawn
+  with the invented looks instead of the Freedoom textures, and ``melon`` and ``explore-goals``;
 - maze generation alone, as mazes per second: ``explore-goals``' DMLab maze (11x11 text cells:
   rooms, depth-first corridors, connections, dead-end and horseshoe removal, spawn and goal
   cells, looks, walls and boxes) with its share of the ``explore-goals`` env's time (one maze
   per env per 1350-step episode: the env generates only on steps where an episode ends, see
   ``explore_goals.regenerate_where_done``), and ``explore-goals-paper``'s spanning-tree maze for
   9x9 and 11x11 cells;
-- the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call), as
-  agent steps per second, with XLA's own FLOP count per agent step and the share of the
-  machine's measured float32 matmul peak that gives;
+- the full A2C training loop (rollout + loss + gradient + Adam, K updates in one call) for one
+  seed, as agent steps per second, with XLA's own FLOP count per agent step and the share of
+  the machine's measured float32 matmul peak that gives;
 - the same loop with each novelty model (SIM at H=10, L=3, the paper's sizes; RND; ICM; EC with
   its ResNet-18 and 200-slot memories, its network fixed as after pretraining), with the novelty
-  model's FLOPs added, and where the time of one update goes: the novelty model's
-  forward+backward on one rollout (EC's forward: its network is not trained during the run),
-  timed alone, against the whole update;
+  model's FLOPs added, and the novelty model's forward+backward on one rollout (EC's forward:
+  its network is not trained during the run), timed alone, against the whole update;
+- the training loop exactly as ``make train`` runs it (``bench_loop``): 1, 2, 3 and 4 seeds of
+  16 envs each for SIM, RND, ICM, EC and A2C, with its share of the matmul peak;
+- where one update's time goes, per method (``bench_parts``): env steps, acting, the rollout,
+  the novelty model's and the A2C loss's forward+backward, the optimiser, each timed alone;
 - EC's pretraining alone: Adam updates of its reachability network on batches of 64 pairs;
 - a sweep's padding overhead: SIM's loop for L = 1..5 (H = 10) as one 5-member program with
   windows laid out for L = 5, against the 5 programs built each for its own L, run one after
-  the other (what 5 separate runs do);
-- one device against two: 2 SIM seeds as one program on one CPU device, and sharded over two
-  (``--xla_force_host_platform_device_count=2``), each in a fresh process.
+  the other (what 5 separate runs do).
+``--only devices`` compares 2 SIM seeds on one CPU device with the same sharded over two
+(``--xla_force_host_platform_device_count=2``), each in a fresh process.
 """
 
 from __future__ import annotations
@@ -43,7 +46,6 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
-from simjax import runtime
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
 from simjax.envs.maze import MazeEnv
@@ -200,6 +202,83 @@ def bench_novelty(task: str, algo: str, num_envs: int = 16, updates: int = 8, **
             "flops_per_step": a2c_flops + nov_flops, "novelty_share": novelty_s / (med / config.updates_per_log)}
 
 
+def bench_parts(task: str, algo: str, seeds: int = 1, num_envs: int = 16, updates: int = 8) -> dict:
+    """Where one update's time goes, for ``seeds`` seeds vmapped as the commands run them: each
+    part run ``updates`` times in a ``lax.scan`` inside one compiled call (the context it has in
+    the training loop), timed apart, against the whole update (``run_chunk``):
+    env (N envs stepped T times, random actions), acting (the policy's forward on one frame per
+    env, T times), rollout (both, as ``collect``), novelty (the novelty model's loss and bonus,
+    forward+backward; EC's bonus forward), a2c (the A2C loss alone, forward+backward), optimizer
+    (clipping and Adam on the gradients). Seconds per update, and XLA's FLOPs per update for the
+    parts that hold no loop."""
+    extra = {"ec_pretrain_steps": 0} if algo == "ec" else {}
+    config = TrainConfig(env=task, algo=algo, num_envs=num_envs, num_seeds=seeds, total_steps=num_envs * 20 * updates,
+                         log_every=num_envs * 20 * updates, **extra)
+    from simjax.agents import a2c_loss
+    from simjax.envs.episodes import starts_episode
+    from simjax.runs.grid import batch_inputs, grid_of
+
+    trainer = make_trainer(config)
+    env = make(task)
+    T, N, K = config.rollout_len, num_envs, config.updates_per_log
+    runners = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid_of({})))
+    _, _, _, traj = jax.jit(jax.vmap(trainer.collect))(runners)
+    last_obs, last_reset = runners.env_state.obs, starts_episode(runners.env_state)
+
+    def scanned(part):  # part(runner, traj, i) -> pytree; K times in one scan, per member
+        def run(r, tr, lo, lr):
+            def body(acc, i):
+                out = part(r, tr, lo, lr, i)
+                return acc + sum(jnp.sum(x).astype(jnp.float32) for x in jax.tree.leaves(out)), None
+            return jax.lax.scan(body, jnp.float32(0.0), jnp.arange(K))[0]
+        return jax.vmap(run)
+
+    def env_part(r, tr, lo, lr, i):
+        def body(s, k):
+            return jax.vmap(env.step)(s, jax.random.randint(k, (N,), 0, env.action_size)), None
+        keys = jax.random.split(jax.random.fold_in(r.key, i), T)
+        return jax.lax.scan(body, r.env_state, keys)[0].obs
+
+    def acting_part(r, tr, lo, lr, i):
+        def body(c, o):
+            c, logits, _ = trainer.network.apply(r.params["policy"], c, o[None], jnp.zeros((1, N), bool))
+            return c, logits
+        return jax.lax.scan(body, r.carry, tr.obs + i.astype(jnp.uint8))[1]
+
+    def rollout_part(r, tr, lo, lr, i):
+        return trainer.collect(r._replace(key=jax.random.fold_in(r.key, i)))[3].reward
+
+    def novelty_grad(p, r, tr, lo, lr):
+        return trainer.novelty.loss_and_bonus(p, r.novelty, tr.obs, tr.reset, tr.action, lo, lr, r.hyper.novelty)
+
+    def novelty_part(r, tr, lo, lr, i):
+        if algo == "ec" and not config.ec_online:
+            return novelty_grad(r.params["novelty"], r, tr, lo, lr)[1][0]
+        return jax.grad(lambda p: novelty_grad(p, r, tr, lo, lr)[0])(r.params["novelty"])
+
+    def a2c_part(r, tr, lo, lr, i):
+        bonus = jnp.zeros(tr.reward.shape) + i.astype(jnp.float32)
+        return jax.grad(lambda p: a2c_loss(p, trainer.network, r.carry, tr, lo, lr, bonus, config, r.hyper)[0])(
+            r.params["policy"])
+
+    def optimizer_part(r, tr, lo, lr, i):
+        grads = jax.tree.map(lambda x: x + i.astype(x.dtype), r.params)
+        return trainer.optimizer(r.hyper).update(grads, r.opt_state, r.params)
+
+    args = (runners, traj, last_obs, last_reset)
+    results = {}
+    for name, part in (("env", env_part), ("acting", acting_part), ("rollout", rollout_part),
+                       ("novelty", novelty_part), ("a2c", a2c_part), ("optimizer", optimizer_part)):
+        if name == "novelty" and algo == "a2c":
+            continue
+        _, med, _ = time_call(scanned(part), *args, repeats=3)
+        results[name] = med / K
+    _, med, _ = time_call(jax.vmap(trainer.run_chunk), runners, repeats=3)
+    results["update"] = med / K
+    return {"algo": algo, "seeds": seeds, "envs": num_envs, "seconds": results,
+            "agent_steps_per_s": seeds * config.steps_per_update / results["update"]}
+
+
 def _sweep_chunk(config: TrainConfig, sweep: dict):
     """A jitted chunk of a sweep's members and the runner state it starts from."""
     from simjax.agents import summarize
@@ -226,6 +305,20 @@ def bench_sweep(task: str, values=(1, 2, 3, 4, 5), num_envs: int = 16, updates: 
     n = len(values)
     return {"points": n, "envs": num_envs, "sweep_steps_per_s": n * steps / med, "sweep_compile_s": compile_s,
             "separate_steps_per_s": n * steps / separate_s, "separate_compile_s": separate_compile}
+
+
+def bench_loop(task: str, algo: str, seeds: int, num_envs: int = 16, updates: int = 8) -> dict:
+    """The training loop exactly as ``python -m simjax.train`` runs it: ``seeds`` seeds of N envs
+    each, initialised by ``init_members``, one jitted ``vmap`` of the chunk (with its metric
+    summary), on this process's devices; agent steps/s over all seeds. EC's row is its policy
+    loop after pretraining."""
+    extra = {"ec_pretrain_steps": 0} if algo == "ec" else {}
+    config = TrainConfig(env=task, algo=algo, num_envs=num_envs, num_seeds=seeds,
+                         total_steps=num_envs * 20 * updates, log_every=num_envs * 20 * updates, **extra)
+    chunk, runner = _sweep_chunk(config, {})
+    compile_s, med, _ = time_call(chunk, runner, repeats=3)
+    steps = config.updates_per_log * config.steps_per_update * seeds
+    return {"algo": algo, "seeds": seeds, "envs": num_envs, "steps_per_s": steps / med, "compile_s": compile_s}
 
 
 def devices_probe(task: str, seeds: int = 2, num_envs: int = 16, updates: int = 4) -> dict:
@@ -281,7 +374,6 @@ def main(argv=None) -> int:
     parser.add_argument("--only", choices=("sweep", "devices"), default=None,
                         help="run only the sweep-overhead or the device-count rows")
     args = parser.parse_args(argv)
-    runtime.configure()
     if args.devices_probe:
         print(json.dumps(devices_probe(args.task)))
         return 0
@@ -290,7 +382,7 @@ def main(argv=None) -> int:
 
     started = time.time()
     peak = matmul_peak()
-    envs = [bench_env(args.task, n) for n in (256, 1024, 4096)]
+    envs = [bench_env(args.task, n) for n in (16, 48, 256, 1024, 4096)]  # 16 per seed: what a run steps
     invented = None
     if args.task.startswith("maze-") and make(args.task).look is not None:
         # the same task drawn with raycaster's invented looks, as before the Freedoom textures
@@ -299,10 +391,12 @@ def main(argv=None) -> int:
     worlds = {task: bench_env(task, 1024) for task in ("melon", "explore-goals")}
     world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
     mazes = [bench_maze_generation(c) for c in (None, 9, 11)]
-    trains = [bench_train(args.task, n) for n in (16, 32, 64)]
+    trains = [bench_train(args.task, 16)]
     novelties = [bench_novelty(args.task, algo) for algo in ("sim", "rnd", "icm", "ec")]
     ec_pretraining = bench_ec_pretraining(args.task)
-    sweep, devices = bench_sweep(args.task), bench_devices(args.task)
+    sweep = bench_sweep(args.task)
+    loops = [bench_loop(args.task, algo, seeds) for algo in LOOP_ALGOS for seeds in (1, 2, 3, 4)]
+    parts = [bench_parts(args.task, algo) for algo in LOOP_ALGOS]
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
         "",
@@ -345,7 +439,8 @@ def main(argv=None) -> int:
     lines += ["", f"EC's pretraining alone (ResNet-18 pairs, batch 64, Adam): {r['pairs_per_s']:,.0f} pairs/s, "
               f"{r['flops_per_pair'] / 1e9:.2f} GFLOPs per pair ({100 * r['flops_per_pair'] * r['pairs_per_s'] / peak:.0f}% "
               "of the matmul peak); the paper's 0.6M steps at 10 passes of one pair per 4 steps are 1.5M pairs."]
-    lines += ["", *sweep_lines(sweep), "", *device_lines(devices)]
+    flops = {r["algo"]: r["flops_per_step"] for r in novelties} | {"a2c": trains[0]["flops_per_step"]}
+    lines += ["", *loop_lines(loops, flops, peak), "", *parts_lines(parts, peak), "", *sweep_lines(sweep)]
     per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
     lines += ["", "Maze generation alone (1024 mazes per call, `vmap`):", ""]
     lines += [(f"- `explore-goals-paper`, {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
@@ -370,6 +465,45 @@ def main(argv=None) -> int:
         with open(args.out, "a") as f:
             f.write(header + text + "\n")
     return 0
+
+
+LOOP_ALGOS = ("sim", "rnd", "icm", "ec", "a2c")
+
+
+def loop_lines(loops: list[dict], flops: dict, peak: float) -> list[str]:
+    """The training loop as the commands run it, a row per method and seed count."""
+    lines = ["The training loop as `make train` runs it (N = 16 envs per seed, all seeds in one compiled "
+             "program on one device), agent steps/s over all seeds:", "",
+             "| method | seeds | agent steps/s | per seed | compile s | share of matmul peak |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for r in loops:
+        share = flops[r["algo"]] * r["steps_per_s"] / peak
+        lines.append(f"| {r['algo'].upper()} | {r['seeds']} | {r['steps_per_s']:,.0f} | {r['steps_per_s'] / r['seeds']:,.0f} | "
+                     f"{r['compile_s']:.1f} | {100 * share:.0f}% |")
+    return lines
+
+
+PARTS = ("env", "acting", "rollout", "novelty", "a2c", "optimizer")
+
+
+def parts_lines(parts: list[dict], peak: float) -> list[str]:
+    """Where one update's time goes (``bench_parts``), per method: ms per update and share."""
+    lines = ["Where one update's time goes (1 seed, N = 16, T = 20; each part timed alone inside a "
+             "`lax.scan`, see `bench_parts`), ms per update and share of the whole update:", "",
+             "| part | " + " | ".join(r["algo"].upper() for r in parts) + " |",
+             "|---|" + "---:|" * len(parts)]
+    for name in PARTS + ("update",):
+        cells = []
+        for r in parts:
+            t = r["seconds"].get(name)
+            cells.append("" if t is None else f"{1000 * t:.1f} ({100 * t / r['seconds']['update']:.0f}%)")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    rest = [r["seconds"]["update"] - sum(r["seconds"].get(k, 0.0) for k in ("rollout", "novelty", "a2c", "optimizer"))
+            for r in parts]
+    lines.append("| update - (rollout + novelty + a2c + optimizer) | "
+                 + " | ".join(f"{1000 * x:.1f} ({100 * x / r['seconds']['update']:.0f}%)" for x, r in zip(rest, parts))
+                 + " |")
+    return lines
 
 
 def sweep_lines(r: dict) -> list[str]:

@@ -4,6 +4,7 @@ from simjax.agents.a2c import (
     RunnerState,
     Trainer,
     Transition,
+    a2c_loss,
     make_train,
     make_trainer,
     n_step_returns,
@@ -14,6 +15,6 @@ from simjax.agents.a2c import (
 from simjax.agents.config import ALGOS, SWEEPABLE, Hyper, TrainConfig
 
 __all__ = [
-    "ALGOS", "SWEEPABLE", "Hyper", "RunnerState", "TrainConfig", "Trainer", "Transition", "make_train",
+    "ALGOS", "SWEEPABLE", "Hyper", "RunnerState", "TrainConfig", "Trainer", "Transition", "a2c_loss", "make_train",
     "make_trainer", "n_step_returns", "sampling_policy", "summarize", "total_reward",
 ]

@@ -83,6 +83,12 @@ class Trainer(NamedTuple):
     network: ActorCritic
     novelty: Novelty
     pretrain: object = None  # EC's ``Pretrainer`` (before the first update; ``train`` runs it), or None
+    # an update's parts, for timing them apart (experiments/bench.py): ``collect(runner) -> (env_state,
+    # carry, key, traj)``, ``loss(params, runner, traj, last_obs, last_reset) -> (loss, (info, novelty
+    # state))``, ``optimizer(hyper)`` the optax transformation
+    collect: Callable | None = None
+    loss: Callable | None = None
+    optimizer: Callable | None = None
 
 
 def total_reward(task_scale: float, extrinsic: jnp.ndarray, bonus: jnp.ndarray) -> jnp.ndarray:
@@ -247,7 +253,7 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
             runner = pretrain.pretrain_runner(runner)
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
-    return Trainer(init, run_chunk, train, network, novelty, pretrain)
+    return Trainer(init, run_chunk, train, network, novelty, pretrain, collect, loss_fn, optimizer)
 
 
 def make_train(config: TrainConfig, env=None):
