@@ -116,6 +116,32 @@ def _processes_naming(text: str) -> list[int]:
     return found
 
 
+def test_a_stop_arriving_while_a_row_and_its_checkpoint_are_written_waits_for_both():
+    from simjax.runs.training import stops_deferred
+
+    events = []
+
+    def stop(signum, frame):
+        events.append(signal.Signals(signum).name)
+        raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with stops_deferred():
+                signal.raise_signal(signal.SIGTERM)
+                events.append("row written")
+                events.append("checkpoint written")
+        assert events == ["row written", "checkpoint written", "SIGTERM"]
+        assert signal.getsignal(signal.SIGTERM) is stop  # the handler before the block is back
+        with stops_deferred():
+            events.append("nothing pending")
+        assert events[-1] == "nothing pending"
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
 def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path):
     # what `timeout` or a job scheduler sends
     out = tmp_path / "run"

@@ -24,7 +24,10 @@ seed's pretraining gives, the one it would have trained itself.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -141,6 +144,29 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
     return jax.jit(finish, **({} if sharding is None else {"out_shardings": sharding}))(runner, params)
 
 
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def stops_deferred():
+    """Ctrl-C or SIGTERM arriving within this block takes effect at its end, through whatever
+    handler was installed before it, so the block is never cut short. In a thread other than
+    the main one (where Python runs no signal handler) it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending = []
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        for s in pending:
+            signal.raise_signal(s)
+
+
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         tensorboard: bool = False, sweep: dict | None = None,
         devices=None) -> Path:
@@ -222,13 +248,13 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
                     "a smaller --learning-rate or --max-grad-norm may help")
             rate = steps_per_chunk * len(batch) / (now - last)
             last = now
-            for i, (point, seed) in enumerate(batch):
-                values = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
-                log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start}, point)
-            log.flush()
-            # the checkpoint always matches the last row on disk, even if the process is killed
-            runner, done_steps = next_runner, steps
-            write_checkpoint(out, runner, done_steps, seeds)
+            with stops_deferred():  # a row and its checkpoint are written together or not at all
+                for i, (point, seed) in enumerate(batch):
+                    values = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
+                    log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start}, point)
+                log.flush()
+                runner, done_steps = next_runner, steps
+                write_checkpoint(out, runner, done_steps, seeds)
             progress.update(done_steps, rate, mean_over_seeds(metrics["success_ratio"]),
                             mean_over_seeds(metrics["mean_episode_length"]))
     except KeyboardInterrupt:
