@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simjax import runtime
-from simjax.runs.folder import atomic_write, load_config, restore
+from simjax import flags, runtime
+from simjax.runs.folder import atomic_write, load_checkpoint, load_config, restore
 
 BACKENDS = ("vizdoom", "simjax")
 VIDEO_FRAMES = 150  # at most this many GIF frames per episode (longer episodes are subsampled)
@@ -46,18 +46,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("run", type=Path, help="run folder (config.json, checkpoint.msgpack)")
     parser.add_argument("--backend", choices=BACKENDS, required=True,
                         help="vizdoom: the real game; simjax: simjax's own env")
-    parser.add_argument("--episodes", type=int, default=200, help="policy episodes per seed (default 200)")
-    parser.add_argument("--random-episodes", type=int, default=None,
+    parser.add_argument("--episodes", type=flags.whole_number, default=200, help="policy episodes per seed (default 200)")
+    parser.add_argument("--random-episodes", type=flags.whole_number, default=None,
                         help="uniform random policy episodes (default: --episodes; 0: none)")
-    parser.add_argument("--max-steps", type=int, default=None,
+    parser.add_argument("--max-steps", type=flags.whole_number, default=None,
                         help="cut episodes after this many steps (default: the task's limit, 525)")
-    parser.add_argument("--seed-index", type=int, default=0, help="which of the run's seeds, 0-based (default 0)")
+    parser.add_argument("--seed-index", type=flags.whole_number, default=0, help="which of the run's seeds, 0-based (default 0)")
     parser.add_argument("--all-seeds", action="store_true", help="evaluate every seed of the run in turn")
-    parser.add_argument("--eval-seed", type=int, default=0,
+    parser.add_argument("--eval-seed", type=flags.whole_number, default=0,
                         help="seed of the episode starts and of the actions (default 0)")
     parser.add_argument("--greedy", action="store_true", help="take the most likely action instead of sampling")
     parser.add_argument("--video", type=Path, default=None, help="write the first policy episodes as a GIF")
-    parser.add_argument("--video-episodes", type=int, default=3, help="episodes in the GIF (default 3)")
+    parser.add_argument("--video-episodes", type=flags.whole_number, default=3, help="episodes in the GIF (default 3)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     return parser
 
@@ -101,6 +101,10 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
         parser.error(f"--max-steps must lie in [1, {limit}] ({config.env}'s limit), got {args.max_steps}")
     if args.video is not None and (getattr(env, "generator", None) is not None or not hasattr(env, "layout")):
         parser.error(f"--video draws the path on a fixed map; {config.env} has none")
+    try:
+        load_checkpoint(args.run)
+    except ValueError as err:
+        parser.error(str(err))
     return config, env, limit
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 
 from simjax.agents import TrainConfig
 
@@ -22,7 +23,24 @@ def parse_bool(text: str) -> bool:
     raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
 
 
-_FIELD_TYPES = {"int": int, "float": float, "str": str, "bool": parse_bool, "float | None": float}
+def whole_number(text: str) -> int:
+    """An integer flag's value, also written as a float that is whole: '4000000', '4e6', '2.5e5'."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value != math.floor(value):
+        raise argparse.ArgumentTypeError(f"expected a whole number such as 4000000 or 4e6, got {text!r}")
+    return int(value)
+
+
+whole_number.__name__ = "int"  # what argparse and list_of call the type in their messages
+
+_FIELD_TYPES = {"int": whole_number, "float": float, "str": str, "bool": parse_bool, "float | None": float}
 _FIELDS = tuple(f.name for f in dataclasses.fields(TrainConfig))
 
 

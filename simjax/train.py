@@ -51,9 +51,12 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
         if given or args.out is not None:
             parser.error("--resume continues a run with its own config.json; give no run settings and no --out")
         try:
-            return folder.load_config(args.resume), args.resume, args
+            config = folder.load_config(args.resume)
+            if (args.resume / "checkpoint.msgpack").exists():
+                folder.load_checkpoint(args.resume)
         except (FileNotFoundError, ValueError, TypeError) as err:
             parser.error(str(err))
+        return config, args.resume, args
     try:
         config = TrainConfig(**given)
     except ValueError as err:

@@ -294,6 +294,31 @@ def test_cli_novelty_flags_and_their_errors(capsys, monkeypatch):
         assert message in capsys.readouterr().err
 
 
+def test_integer_flags_take_whole_numbers_written_as_floats(capsys):
+    config, _, _ = cli.parse_config(["--total-steps", "4e6", "--num-envs", "16", "--log-every", "2.5e4"])
+    assert (config.total_steps, config.num_envs, config.log_every) == (4_000_000, 16, 25_000)
+    assert isinstance(config.total_steps, int)
+    for bad in ("2.5", "1e-3", "inf", "many"):
+        with pytest.raises(SystemExit):
+            cli.parse_config(["--total-steps", bad])
+        assert f"expected a whole number such as 4000000 or 4e6, got '{bad}'" in capsys.readouterr().err
+
+
+def test_a_damaged_checkpoint_is_a_one_line_error_naming_its_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cli, "run", lambda *a, **k: pytest.fail("must not start a run"))
+    runs.write_config(tmp_path, TrainConfig(env="maze-tiny"))
+    runs.write_checkpoint(tmp_path, {"params": np.zeros((64, 64), np.float32)}, 40, [0])
+    assert runs.load_checkpoint(tmp_path)["env_steps"] == 40
+    whole = (tmp_path / "checkpoint.msgpack").read_bytes()
+    for damaged in (whole[: len(whole) // 2], b"", b"\x05"):
+        (tmp_path / "checkpoint.msgpack").write_bytes(damaged)
+        with pytest.raises(SystemExit) as err:
+            cli.main(["--resume", str(tmp_path)])
+        assert err.value.code == 2
+        message = capsys.readouterr().err.strip().splitlines()[-1]
+        assert f"{tmp_path / 'checkpoint.msgpack'} is damaged" in message and "Traceback" not in message
+
+
 @pytest.mark.parametrize("algo", ["sim", "rnd", "icm"])
 def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
     config = _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2)

@@ -101,6 +101,9 @@ def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path,
         evaluate.main([str(tiny), "--backend", "vizdoom"])
     err = capsys.readouterr().err
     assert "plays MyWayHome" in err and "maze-tiny" in err
+    with pytest.raises(SystemExit):
+        evaluate.main([str(tiny), "--backend", "simjax"])
+    assert f"{tiny / 'checkpoint.msgpack'} is damaged" in capsys.readouterr().err
 
 
 def test_wilson_interval():

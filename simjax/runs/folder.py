@@ -193,10 +193,17 @@ def write_checkpoint(run_dir: Path, runner, env_steps: int, seeds: list[int]) ->
 
 def load_checkpoint(run_dir: Path, template=None) -> dict:
     """The checkpoint as saved: {"runner": RunnerState of every seed (leading axis: seed),
-    "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types."""
+    "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types.
+    A file that does not read as one is a ValueError naming it."""
     from flax import serialization
 
-    ckpt = serialization.msgpack_restore((Path(run_dir) / "checkpoint.msgpack").read_bytes())
+    path = Path(run_dir) / "checkpoint.msgpack"
+    try:
+        ckpt = serialization.msgpack_restore(path.read_bytes())
+    except ValueError as err:  # msgpack's errors for a truncated or overwritten file
+        raise ValueError(f"{path} is damaged ({err}); restore it from a copy or start the run again") from None
+    if not (isinstance(ckpt, dict) and {"runner", "env_steps", "seeds"} <= ckpt.keys()):
+        raise ValueError(f"{path} is damaged (not a simjax checkpoint); restore it from a copy or start the run again")
     novelty = ckpt["runner"].get("novelty") if isinstance(ckpt.get("runner"), dict) else None
     if isinstance(novelty, dict) and "model" not in novelty:
         novelty["model"] = {}  # saved before NoveltyState had a model state (EC's); the others' is empty
