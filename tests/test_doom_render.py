@@ -6,9 +6,8 @@ import chex
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
-from simjax.envs import doom_render, make, motion
+from simjax.envs import doom_render, make
 
 
 def test_zdoom_light_indices():
@@ -51,12 +50,10 @@ def test_area_matrix_averages():
     np.testing.assert_allclose(m.sum(0) * 160 / 42, 1.0)  # every screen column counts once
 
 
-def test_a_far_wall_shows_its_texture_averaged_and_does_not_flicker():
-    # a 1000x1000 room of SILVER2 (a 64-wide texture of fine panels); the far wall, 900 units
-    # ahead, covers about 3 texels a screen column: its pixels must be the texture's average
-    # under its light (index 7 for a wall along y at 900: floor(9 - 1280 / 900)), and a step of
-    # 2 units sideways must barely change them (point sampling flickers there)
-    from simjax.envs import doom_assets, mywayhome_map
+def _silver_box():
+    """A 1000 x 1000 room of SILVER2 walls (x in [0, 1000], y in [-500, 500]) with its one item
+    hidden: (layout, look, sprites)."""
+    from simjax.envs import mywayhome_map
     from simjax.envs.maze import Layout, goal_item
 
     silver = mywayhome_map.TEXTURE_NAMES.index("SILVER2")
@@ -65,6 +62,17 @@ def test_a_far_wall_shows_its_texture_averaged_and_does_not_flicker():
     layout = Layout.build(rows, [goal_item((-50.0, 0.0))], [(100.0, 0.0)])
     look = doom_render.build_look(layout.walls, mywayhome_map.TEXTURE_NAMES, np.zeros(4), np.zeros(4, bool))
     hidden = doom_render.raycaster.Sprites(layout.items.pos, layout.items.look, jnp.zeros((1,), bool))
+    return layout, look, hidden
+
+
+def test_a_far_wall_shows_its_texture_averaged_and_does_not_flicker():
+    # a 1000x1000 room of SILVER2 (a 64-wide texture of fine panels); the far wall, 900 units
+    # ahead, covers about 3 texels a screen column: its pixels must be the texture's average
+    # under its light (index 7 for a wall along y at 900: floor(9 - 1280 / 900)), and a step of
+    # 2 units sideways must barely change them (point sampling flickers there)
+    from simjax.envs import doom_assets
+
+    layout, look, hidden = _silver_box()
     frame = jax.jit(lambda y: doom_render.render(layout.walls, jnp.stack([jnp.float32(100.0), y]), jnp.float32(0.0),
                                                  hidden, look))
     a, b = np.asarray(frame(jnp.float32(0.0)), float), np.asarray(frame(jnp.float32(2.0)), float)
@@ -75,13 +83,20 @@ def test_a_far_wall_shows_its_texture_averaged_and_does_not_flicker():
     assert np.abs(a[18:22, 8:34] - b[18:22, 8:34]).mean() < 2.0
 
 
-@pytest.mark.parametrize("heading", [0.0, 1.0, -2.5])
-def test_eye_height_moves_the_horizon(heading):
-    env = make("maze-dense")
-    pose = motion.Pose.at(jnp.array([464.0, -176.0]), jnp.float32(heading))
-    sprites = doom_render.raycaster.Sprites(env.layout.items.pos, env.layout.items.look, jnp.ones((1,), bool))
-    args = (env.layout.walls, pose.pos, pose.heading, sprites, env.look, env.camera, env.light)
-    low = np.asarray(doom_render.render(*args, eye_height=jnp.float32(33.0)), int)
-    high = np.asarray(doom_render.render(*args, eye_height=jnp.float32(49.0)), int)
-    assert np.abs(low - high).mean() > 1.0
-    assert math.isfinite(float(np.abs(low - high).mean()))
+def test_eye_height_sets_the_row_where_the_floor_begins():
+    """Facing a wall 100 units away, the floor shows below screen row horizon + eye * focal_y /
+    100, so a higher eye pushes it down: every output row wholly below that is the floor's colour."""
+    layout, look, hidden = _silver_box()
+    camera = doom_render.DoomCamera()
+    frame = jax.jit(lambda eye: doom_render.render(layout.walls, jnp.array([900.0, 0.0]), jnp.float32(0.0), hidden,
+                                                   look, eye_height=eye))
+    floor = np.round(doom_render._plane_rows(camera, doom_render.DoomLight(), look.plane_rgb)[1] * 255.0)
+    first = {}
+    for eye in (33.0, 41.0, 49.0):
+        picture = np.asarray(frame(jnp.float32(eye)), float)
+        chex.assert_shape(picture, (camera.height, camera.width, 3))
+        is_floor = np.all(np.abs(picture - floor[:, None, :]) <= 1.0, axis=(1, 2))
+        want = math.ceil((camera.horizon + eye * camera.focal_y / 100.0) / (camera.screen_height / camera.height))
+        np.testing.assert_array_equal(is_floor, np.arange(camera.height) >= want)
+        first[eye] = want
+    assert first[33.0] < first[41.0] < first[49.0]
