@@ -72,7 +72,7 @@ def test_render_shape_dtype_and_content():
     assert 12 <= armour.sum() <= 40
     assert cols.min() >= 17 and cols.max() <= 25 and rows.min() >= 18 and rows.max() <= 30
     # ...and it is hidden when a wall stands between (same spot, facing away)
-    away = pose._replace(heading=jnp.float32(math.pi / 2))
+    away = motion.Pose.at(pose.pos, jnp.float32(math.pi / 2))
     np.testing.assert_array_equal(np.asarray(render(away)), np.asarray(render(away, None, gone)))
     # floor below the horizon, ceiling above, differently lit
     assert not np.array_equal(np.asarray(frame)[0, 0], np.asarray(frame)[-1, 0])

@@ -163,3 +163,16 @@ def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert runs.load_checkpoint(out)["env_steps"] == int(rows[-1]["env_steps"]) >= 40
     assert (out / "curve.png").exists() and not list(out.glob("*.tmp"))
+
+
+def test_a_checkpoint_whose_poses_store_their_heading_still_restores(tmp_path):
+    # motion.Pose derives its heading from its angle; checkpoints written before kept both
+    from simjax.envs import motion
+
+    pose = motion.Pose.at(np.array([3.0, 4.0], np.float32), 1.0)
+    old = {"pose": {"pos": pose.pos, "heading": pose.heading, "vel": pose.vel, "angle": pose.angle,
+                    "turn_tics": pose.turn_tics}}
+    runs.write_checkpoint(tmp_path, old, 40, [0])
+    back = runs.load_checkpoint(tmp_path, {"pose": pose})["runner"]["pose"]
+    assert isinstance(back, motion.Pose) and int(back.angle) == int(pose.angle)
+    assert float(back.heading) == float(pose.heading) == pytest.approx(1.0, abs=1e-4)

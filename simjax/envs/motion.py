@@ -61,20 +61,21 @@ class MotionParams(NamedTuple):
 
 class Pose(NamedTuple):
     pos: jnp.ndarray  # (2,) float32
-    heading: jnp.ndarray  # () float32, radians in [-pi, pi): angle * 2 pi / 65536
     vel: jnp.ndarray  # (2,) float32, momentum in units/tic
     angle: jnp.ndarray  # () int32, Doom's angle in 1/65536 of a turn, in [0, 65536)
     turn_tics: jnp.ndarray  # () int32, consecutive tics with a turn button down (capped)
+
+    @property
+    def heading(self) -> jnp.ndarray:
+        """() float32, radians in [-pi, pi): angle * 2 pi / 65536."""
+        return heading_of(self.angle)
 
     @staticmethod
     def at(xy, heading) -> Pose:
         """A player standing still at ``xy`` facing ``heading`` (radians; rounded to Doom's
         nearest angle unit, 0.0055 deg). Works on traced values."""
         angle = angle_units(heading)
-        return Pose(
-            jnp.asarray(xy, jnp.float32).reshape(2), heading_of(angle), jnp.zeros(2, jnp.float32),
-            angle, jnp.int32(0),
-        )
+        return Pose(jnp.asarray(xy, jnp.float32).reshape(2), jnp.zeros(2, jnp.float32), angle, jnp.int32(0))
 
 
 def angle_units(heading) -> jnp.ndarray:
@@ -217,4 +218,4 @@ def tic(pose: Pose, action: jnp.ndarray, boxes: jnp.ndarray, params: MotionParam
     pos, vel = _move(pose.pos, vel, boxes, line_dir, origin, params.radius)
     stopped = ~walking & jnp.all(jnp.abs(vel) < params.stop_speed)
     vel = jnp.where(stopped, 0.0, vel * params.friction)
-    return Pose(pos, heading_of(angle), vel, angle, turn_tics.astype(jnp.int32))
+    return Pose(pos, vel, angle, turn_tics.astype(jnp.int32))

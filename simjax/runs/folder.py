@@ -191,6 +191,19 @@ def write_checkpoint(run_dir: Path, runner, env_steps: int, seeds: list[int]) ->
     atomic_write(Path(run_dir) / "checkpoint.msgpack", serialization.msgpack_serialize(state))
 
 
+_POSE_WITH_HEADING = {"pos", "heading", "vel", "angle", "turn_tics"}
+
+
+def _drop_stored_headings(tree) -> None:
+    """Checkpoints written while ``motion.Pose`` stored its heading (now derived from its angle,
+    the same values) have a "heading" entry in each pose: drop it so they restore."""
+    if isinstance(tree, dict):
+        if tree.keys() == _POSE_WITH_HEADING:
+            del tree["heading"]
+        for value in tree.values():
+            _drop_stored_headings(value)
+
+
 def load_checkpoint(run_dir: Path, template=None) -> dict:
     """The checkpoint as saved: {"runner": RunnerState of every seed (leading axis: seed),
     "env_steps", "seeds"}; with a ``template`` RunnerState the runner is rebuilt into its types.
@@ -204,6 +217,7 @@ def load_checkpoint(run_dir: Path, template=None) -> dict:
         raise ValueError(f"{path} is damaged ({err}); restore it from a copy or start the run again") from None
     if not (isinstance(ckpt, dict) and {"runner", "env_steps", "seeds"} <= ckpt.keys()):
         raise ValueError(f"{path} is damaged (not a simjax checkpoint); restore it from a copy or start the run again")
+    _drop_stored_headings(ckpt["runner"])
     novelty = ckpt["runner"].get("novelty") if isinstance(ckpt.get("runner"), dict) else None
     if isinstance(novelty, dict) and "model" not in novelty:
         novelty["model"] = {}  # saved before NoveltyState had a model state (EC's); the others' is empty
