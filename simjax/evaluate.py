@@ -129,30 +129,32 @@ def policy_step(network, greedy: bool):
 
 def simjax_rollout(env, network, act, num_lanes: int, steps: int, record: int):
     """A jittable ``(params, key, uniform) -> (done, success, length (T, N), views, xy)``: ``N``
-    lanes of ``env`` for ``steps`` steps (the env auto-resets), acting with ``act`` or, where
-    ``uniform``, uniformly at random; one compiled function serves both policies. ``views``
-    (T, record, H, W, C) and ``xy`` (T, record, 2) are the first ``record`` lanes' frames and
-    positions before each step."""
+    lanes of ``env`` for ``steps`` steps (``envs.episodes.rollout``; the env auto-resets),
+    acting with ``act`` or, where ``uniform``, uniformly at random; one compiled function serves
+    both policies. ``views`` (T, record, H, W, C) and ``xy`` (T, record, 2) are the first
+    ``record`` lanes' frames and positions before each step."""
     import jax
+    import jax.numpy as jnp
 
-    def rollout(params, key, uniform):
+    from simjax.envs import rollout
+
+    def keep(state, actions, nxt):
+        m = nxt.metrics
+        return (m["episode_done"] > 0, m["episode_success"] > 0, m["episode_length"], state.obs[:record],
+                state.pipeline_state.pose.pos[:record])
+
+    def play(params, key, uniform):
         k_reset, k_act = jax.random.split(key)
         state = jax.vmap(env.reset)(jax.random.split(k_reset, num_lanes))
 
-        def step(c, k):
-            state, carry = c
+        def policy(carry, state, k):
             k_pol, k_rand = jax.random.split(k)
             action, carry = act(params, carry, state.obs, k_pol)
-            action = jax.numpy.where(uniform, jax.random.randint(k_rand, (num_lanes,), 0, env.action_size), action)
-            nxt = jax.vmap(env.step)(state, action)
-            m = nxt.metrics
-            return (nxt, carry), (m["episode_done"] > 0, m["episode_success"] > 0, m["episode_length"],
-                                  state.obs[:record], state.pipeline_state.pose.pos[:record])
+            return jnp.where(uniform, jax.random.randint(k_rand, (num_lanes,), 0, env.action_size), action), carry
 
-        carry = network.initial_carry(num_lanes)
-        return jax.lax.scan(step, (state, carry), jax.random.split(k_act, steps))[1]
+        return rollout(env, policy, state, network.initial_carry(num_lanes), jax.random.split(k_act, steps), keep)[2]
 
-    return rollout
+    return play
 
 
 def first_episodes(done, success, length, steps: int):
