@@ -6,9 +6,10 @@ Reads the WADs shipped inside the installed ``vizdoom`` package (``freedoom2.wad
 ViZDoom renders with, and ``scenarios/my_way_home.wad``, the map) and writes the textures of
 the map's walls, its floor/ceiling flat, the goal item's sprite, the palette and light tables,
 and per-wall texture alignment in the row order of ``simjax/envs/mywayhome_map.py``.
-Only numpy and the standard library are used, so the asset can be rebuilt (and the tests can
-check it against a fresh conversion) wherever vizdoom is installed. See
-``simjax/envs/doom_assets.py`` for what each key holds.
+WADs are read with ``simjax/envs/wad.py``, the project's one WAD reader, loaded from its file
+together with the map module: only numpy and the standard library are used, so the asset can be
+rebuilt (and the tests can check it against a fresh conversion) wherever vizdoom is installed.
+See ``simjax/envs/doom_assets.py`` for what each key holds.
 """
 
 from __future__ import annotations
@@ -22,41 +23,22 @@ import struct
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-DEFAULT_OUT = os.path.join(REPO, "simjax", "envs", "assets", "freedoom_mywayhome.npz")
-MAP_MODULE = os.path.join(REPO, "simjax", "envs", "mywayhome_map.py")
+ENVS = os.path.join(REPO, "simjax", "envs")
+DEFAULT_OUT = os.path.join(ENVS, "assets", "freedoom_mywayhome.npz")
 FLAT = "FLAT1_1"
 SPRITE = "ARM1A0"
 
 
-class Wad:
-    """The lumps of one WAD file, in directory order (names may repeat, e.g. per-map lumps)."""
+def load_envs_module(name: str):
+    """The module ``simjax/envs/<name>.py``, loaded from its file so that jax (imported by
+    simjax.envs) is not needed here."""
+    spec = importlib.util.spec_from_file_location(name, os.path.join(ENVS, f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
-    def __init__(self, path: str):
-        with open(path, "rb") as f:
-            data = f.read()
-        ident, count, table = struct.unpack_from("<4sii", data, 0)
-        if ident not in (b"IWAD", b"PWAD"):
-            raise ValueError(f"{path} is not a WAD")
-        self.lumps = []
-        for i in range(count):
-            pos, size, name = struct.unpack_from("<ii8s", data, table + 16 * i)
-            self.lumps.append((name.rstrip(b"\0").decode("ascii").upper(), data[pos:pos + size]))
 
-    def find(self, name: str, markers: tuple[str, ...] = ()) -> bytes | None:
-        """The last lump called ``name`` (later lumps override earlier ones, as in Doom),
-        looking only between ``X_START``/``X_END`` (or ``XX_START``/``XX_END``) for the
-        namespace letters given in ``markers``; None if absent."""
-        inside, found = not markers, None
-        starts = {m + "_START" for m in markers} | {m * 2 + "_START" for m in markers}
-        ends = {m + "_END" for m in markers} | {m * 2 + "_END" for m in markers}
-        for lump_name, data in self.lumps:
-            if lump_name in starts:
-                inside = True
-            elif lump_name in ends:
-                inside = False
-            elif inside and lump_name == name:
-                found = data
-        return found
+Wad = load_envs_module("wad").Wad
 
 
 def decode_picture(data: bytes) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
@@ -202,21 +184,12 @@ def vizdoom_dir() -> str:
     return list(spec.submodule_search_locations)[0]
 
 
-def load_map_module():
-    """simjax's MyWayHome map, loaded from its file so that jax (imported by simjax.envs)
-    is not needed here."""
-    spec = importlib.util.spec_from_file_location("mywayhome_map", MAP_MODULE)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def convert(vizdoom_path: str | None = None, verbose: bool = False) -> dict[str, np.ndarray]:
     """Every array the asset holds, by key."""
     vizdoom_path = vizdoom_path or vizdoom_dir()
-    iwad = Wad(os.path.join(vizdoom_path, "freedoom2.wad"))
-    level = Wad(os.path.join(vizdoom_path, "scenarios", "my_way_home.wad"))
-    game_map = load_map_module()
+    iwad = Wad.load(os.path.join(vizdoom_path, "freedoom2.wad"))
+    level = Wad.load(os.path.join(vizdoom_path, "scenarios", "my_way_home.wad"))
+    game_map = load_envs_module("mywayhome_map")
     names = tuple(n.upper() for n in game_map.TEXTURE_NAMES)
 
     playpal = np.frombuffer(iwad.find("PLAYPAL"), np.uint8, 768).reshape(256, 3).copy()

@@ -90,6 +90,7 @@ import vizdoom as vzd
 from simjax.envs.doom_render import area_matrix
 from simjax.envs.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
 from simjax.envs.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
+from simjax.envs.wad import Wad
 
 TICS_PER_STEP = 4
 LIVING_REWARD_PER_TIC = -0.0001  # the scenario's; our tasks have none
@@ -112,28 +113,6 @@ _BEHAVIOR_SHA256 = "2b53583618c44a47ed923b9af232769b172bd76b0185f1ade46686ccf102
 
 # ---------------------------------------------------------------------------------------------
 # The patched wad: one more ACS script that places the player.
-
-
-def _read_wad(data: bytes) -> list[tuple[str, bytes]]:
-    """The lumps of a WAD file, in order, as (name, bytes)."""
-    ident, count, dir_ofs = struct.unpack_from("<4sii", data, 0)
-    if ident not in (b"PWAD", b"IWAD"):
-        raise ValueError("not a WAD file")
-    lumps = []
-    for i in range(count):
-        ofs, size, name = struct.unpack_from("<ii8s", data, dir_ofs + 16 * i)
-        lumps.append((name.rstrip(b"\0").decode("ascii"), data[ofs : ofs + size]))
-    return lumps
-
-
-def _write_wad(lumps: list[tuple[str, bytes]]) -> bytes:
-    """A PWAD holding ``lumps`` in order (the inverse of _read_wad)."""
-    body, directory, ofs = b"", b"", 12
-    for name, data in lumps:
-        directory += struct.pack("<ii8s", ofs, len(data), name.encode("ascii"))
-        body += data
-        ofs += len(data)
-    return struct.pack("<4sii", b"PWAD", len(lumps), 12 + len(body)) + body + directory
 
 
 def patched_behavior(behavior: bytes) -> bytes:
@@ -206,11 +185,10 @@ def patched_behavior(behavior: bytes) -> bytes:
 
 def write_patched_wad(path: str) -> str:
     """Write ``my_way_home.wad`` with :func:`patched_behavior` applied to ``path``; return it."""
-    with open(os.path.join(vzd.scenarios_path, "my_way_home.wad"), "rb") as f:
-        lumps = _read_wad(f.read())
-    lumps = [(n, patched_behavior(d) if n == "BEHAVIOR" else d) for n, d in lumps]
+    shipped = Wad.load(os.path.join(vzd.scenarios_path, "my_way_home.wad"))
+    patched = Wad([(n, patched_behavior(d) if n == "BEHAVIOR" else d) for n, d in shipped.lumps])
     with open(path, "wb") as f:
-        f.write(_write_wad(lumps))
+        f.write(patched.to_bytes())
     return path
 
 
