@@ -88,7 +88,7 @@ def bench_env(task, num_envs: int, steps: int = 64) -> dict:
 
 def bench_maze_generation(cells: int | None, num: int = 1024) -> dict:
     """``cells`` None: explore-goals' DMLab maze; else the paper variant's maze of cells x cells."""
-    from simjax.envs.explore_goals import DMLabMazeGenerator, MazeGenerator
+    from simjax.envs.dmlab.explore_goals import DMLabMazeGenerator, MazeGenerator
 
     gen = DMLabMazeGenerator() if cells is None else MazeGenerator(cells=cells)
     keys = jax.random.split(jax.random.PRNGKey(0), num)

@@ -18,8 +18,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simjax.envs import make, melon, mywayhome_map  # noqa: E402
-from simjax.envs.motion import Pose  # noqa: E402
+from simjax.envs import make  # noqa: E402
+from simjax.envs.dmlab import melon  # noqa: E402
+from simjax.envs.doom import mywayhome_map  # noqa: E402
+from simjax.envs.doom.motion import Pose  # noqa: E402
 from simjax.envs.topdown import draw_topdown  # noqa: E402
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"

@@ -33,7 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import mywayhome_layout, mywayhome_map, random_walks, raycaster
+from simjax.envs import mywayhome_layout, random_walks, raycaster
+from simjax.envs.doom import mywayhome_map
 from simjax.envs.maze import MazeEnv, MazeTask
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread
 from simjax.novelty.networks import RNDTarget

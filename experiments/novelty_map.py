@@ -35,7 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, random_walks  # noqa: E402
+from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, random_walks  # noqa: E402
+from simjax.envs.doom import mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
 from simjax.runs import restore  # noqa: E402

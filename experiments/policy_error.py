@@ -43,7 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from novelty_map import MYWAYHOME_TASKS
 
 from simjax.agents import sampling_policy
-from simjax.envs import given_actions, mywayhome_map, raycaster, rollout, starts_episode, uniform_policy
+from simjax.envs import given_actions, raycaster, rollout, starts_episode, uniform_policy
+from simjax.envs.doom import mywayhome_map
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames
 from simjax.runs import restore
 

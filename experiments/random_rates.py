@@ -13,7 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import make, vizdoom_ref  # noqa: E402
+from simjax.envs import make  # noqa: E402
+from simjax.envs.doom import vizdoom_ref  # noqa: E402
 
 n_sim = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
 n_viz = int(sys.argv[2]) if len(sys.argv) > 2 else 600

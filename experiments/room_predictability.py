@@ -27,16 +27,8 @@ import optax
 
 from simjax.agents import TrainConfig
 from simjax.agents.a2c import ADAM_EPS
-from simjax.envs import (
-    MazeEnv,
-    MazeTask,
-    given_actions,
-    mywayhome_layout,
-    mywayhome_map,
-    raycaster,
-    rollout,
-    starts_episode,
-)
+from simjax.envs import MazeEnv, MazeTask, given_actions, mywayhome_layout, raycaster, rollout, starts_episode
+from simjax.envs.doom import mywayhome_map
 from simjax.novelty import make_novelty
 
 ROOMS = {10: "start (BIGDOOR2 panels)", 11: "tan (CEIL4_2 checker)", 17: "green (COMP01 bands)",

@@ -2,7 +2,7 @@
 
     python experiments/vizdoom_fidelity.py [--walks 64] [--steps 100] [--first-seed 0]
 
-Plays seeded uniform-random walks in ViZDoom (``simjax.envs.fidelity``), replays them in
+Plays seeded uniform-random walks in ViZDoom (``simjax.envs.doom.fidelity``), replays them in
 simjax from the same start, and writes ``experiments/results/vizdoom-fidelity/summary.json``
 (heading error, position error after 25 and 100 steps, per-pixel difference of the 42x42
 frames at the same poses, depth agreement), and ``docs/vizdoom_side_by_side.png``: the same
@@ -26,9 +26,10 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from simjax.envs import fidelity, make, mywayhome_layout, vizdoom_ref  # noqa: E402
+from simjax.envs import make, mywayhome_layout  # noqa: E402
+from simjax.envs.doom import fidelity, vizdoom_ref  # noqa: E402
+from simjax.envs.doom.motion import Pose  # noqa: E402
 from simjax.envs.maze import MazeEnv, MazeTask  # noqa: E402
-from simjax.envs.motion import Pose  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

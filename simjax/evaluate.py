@@ -9,7 +9,7 @@ or the 525-step limit (``--max-steps`` cuts episodes shorter, for smoke checks),
 successes and episode lengths of the policy (actions sampled from its distribution as in
 training, ``--greedy`` for argmax; LSTM state carried through an episode) and of the uniform
 random policy, over the same episode starts (the same seeds draw them). ``vizdoom`` plays the
-real game one episode at a time, 4 tics a step (``simjax.envs.vizdoom_ref``), showing the policy
+real game one episode at a time, 4 tics a step (``simjax.envs.doom.vizdoom_ref``), showing the policy
 the 160x120 frame area-averaged to 42x42, which is what simjax's renderer draws; it needs vizdoom
 and one of the MyWayHome tasks. ``simjax`` plays all episodes at once (``jax.vmap`` over lanes,
 ``lax.scan`` over steps) and counts each lane's first episode.
@@ -85,7 +85,7 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
         parser.error("--video needs a FILE.gif and --video-episodes of at least 1")
     if args.backend == "vizdoom":
         try:
-            from simjax.envs.vizdoom_ref import TASK_STARTS
+            from simjax.envs.doom.vizdoom_ref import TASK_STARTS
         except ImportError as err:
             parser.error(f"--backend vizdoom needs the vizdoom package ({err}); pip install -e '.[test]'")
         if config.env not in TASK_STARTS:
@@ -180,7 +180,7 @@ def simjax_episodes(rollout, params, key, uniform: bool, n: int, steps: int, rec
 def vizdoom_episodes(game, start, choose, seeds, steps: int, record: int, say=None):
     """Play ``len(seeds)`` ViZDoom episodes (episode i seeded ``seeds[i]``, from ``start``).
     ``choose(i)`` gives episode i's actor, ``42x42 frame -> action``. Returns as ``simjax_episodes``."""
-    from simjax.envs import vizdoom_ref
+    from simjax.envs.doom import vizdoom_ref
 
     success, length, recorded = [], [], []
     for i, seed in enumerate(seeds):
@@ -332,7 +332,7 @@ def main(argv=None) -> int:
         run_random = lambda p: simjax_episodes(rollout, p, key, True, n_random, steps, 0)
         game = None
     else:
-        from simjax.envs import vizdoom_ref
+        from simjax.envs.doom import vizdoom_ref
 
         game = vizdoom_ref.MyWayHome(seed=args.eval_seed, depth=False)
         start = vizdoom_ref.TASK_STARTS[config.env]

@@ -3,7 +3,7 @@
 ``RemoveDeadEnds`` (row-major visit, following each dead end's chain) and
 ``RemoveAllHorseshoeBends`` (``RemoveHorseshoeBends`` short-circuits after the first bend;
 ``RemoveHorseshoeBendAtPos`` pulls a bend until it no longer matches). The tests use it as the
-oracle for the vectorised JAX version in ``simjax.envs.dmlab_maze``.
+oracle for the vectorised JAX version in ``simjax.envs.dmlab.dmlab_maze``.
 
 Grids are lists of lists of characters: '*' wall, ' ' empty, '+' connector; off the grid reads
 as '\\0' (neither wall nor empty), as ``TextMaze::GetCell`` returns.

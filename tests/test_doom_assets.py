@@ -1,4 +1,4 @@
-"""The Freedoom texture asset (simjax/envs/assets/freedoom_mywayhome.npz) against its source:
+"""The Freedoom texture asset (simjax/envs/doom/assets/freedoom_mywayhome.npz) against its source:
 a fresh conversion of the installed vizdoom's WADs, and what ViZDoom itself draws."""
 
 import os
@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from simjax.envs import doom_assets, mywayhome_map
+from simjax.envs.doom import doom_assets, mywayhome_map
 
 TOOL = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
                     "tools", "freedoom_assets.py")

@@ -7,7 +7,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import doom_render, make
+from simjax.envs import make
+from simjax.envs.doom import doom_render
 
 
 def test_zdoom_light_indices():
@@ -53,7 +54,7 @@ def test_area_matrix_averages():
 def _silver_box():
     """A 1000 x 1000 room of SILVER2 walls (x in [0, 1000], y in [-500, 500]) with its one item
     hidden: (layout, look, sprites)."""
-    from simjax.envs import mywayhome_map
+    from simjax.envs.doom import mywayhome_map
     from simjax.envs.maze import Layout, goal_item
 
     silver = mywayhome_map.TEXTURE_NAMES.index("SILVER2")
@@ -70,7 +71,7 @@ def test_a_far_wall_shows_its_texture_averaged_and_does_not_flicker():
     # ahead, covers about 3 texels a screen column: its pixels must be the texture's average
     # under its light (index 7 for a wall along y at 900: floor(9 - 1280 / 900)), and a step of
     # 2 units sideways must barely change them (point sampling flickers there)
-    from simjax.envs import doom_assets
+    from simjax.envs.doom import doom_assets
 
     layout, look, hidden = _silver_box()
     frame = jax.jit(lambda y: doom_render.render(layout.walls, jnp.stack([jnp.float32(100.0), y]), jnp.float32(0.0),

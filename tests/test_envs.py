@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from helpers import walk
 
-from simjax.envs import TASK_NAMES, make, motion, mywayhome_layout, mywayhome_map, raycaster, tiny_layout
+from simjax.envs import TASK_NAMES, make, mywayhome_layout, raycaster, tiny_layout
+from simjax.envs.doom import motion, mywayhome_map
 from simjax.envs.maze import MazeEnv, MazeTask
 
 

@@ -16,7 +16,7 @@ pytest.importorskip("vizdoom")
 from simjax import evaluate, runs  # noqa: E402
 from simjax.agents import TrainConfig  # noqa: E402
 from simjax.envs import make  # noqa: E402
-from simjax.envs import vizdoom_ref as vr  # noqa: E402
+from simjax.envs.doom import vizdoom_ref as vr  # noqa: E402
 
 FIELDS = {"run", "env", "backend", "seed_index", "seed", "env_steps", "eval_seed", "greedy", "max_steps",
           "policy", "random", "command", "date", "versions", "video"}

@@ -36,3 +36,55 @@ def test_a_normal_run_prints_no_import_failures():
     for command in (["-m", "simjax.train", "--help"], ["-c", "import simjax.envs, simjax.runs"]):
         out = subprocess.run([sys.executable, *command], capture_output=True, text=True, timeout=300, check=True)
         assert "Failed to import" not in out.stdout + out.stderr, command
+
+
+def _envs_import_graph() -> dict[str, set[str]]:
+    """{module: the simjax.envs modules it imports} for every module under simjax/envs, read
+    from the source (``from simjax.envs import raycaster`` is an import of simjax.envs.raycaster)."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    files = sorted((root / "simjax" / "envs").rglob("*.py"))
+
+    def name_of(path: Path) -> str:
+        parts = path.relative_to(root).with_suffix("").parts
+        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+    modules = {name_of(f): f for f in files}
+    graph = {}
+    for name, path in modules.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("simjax.envs"):
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    targets.add(full if full in modules else node.module)
+            elif isinstance(node, ast.Import):
+                targets |= {a.name for a in node.names if a.name.startswith("simjax.envs")}
+        graph[name] = targets - {name}
+    return graph
+
+
+def test_the_envs_import_only_down_their_layers():
+    """The shared floor (raycaster, brax base, episodes) < the Doom engine and MyWayHome
+    (envs.doom) < the maze env and its adapters < the DMLab worlds (envs.dmlab) < the registry."""
+    graph = _envs_import_graph()
+
+    def layer(module: str) -> int:
+        if module.startswith("simjax.envs.doom"):
+            return 1
+        if module.startswith("simjax.envs.dmlab"):
+            return 3
+        return {"simjax.envs.base": 0, "simjax.envs.episodes": 0, "simjax.envs.raycaster": 0,
+                "simjax.envs.gymnax_adapter": 2, "simjax.envs.maze": 2, "simjax.envs.topdown": 2,
+                "simjax.envs": 4}[module]
+
+    assert {"simjax.envs.doom.motion", "simjax.envs.dmlab.melon", "simjax.envs.maze"} <= graph.keys()
+    upward = [(m, t) for m, targets in graph.items() for t in targets if layer(t) > layer(m)]
+    assert upward == []
+    done: set[str] = set()  # and no cycle within a layer: a topological order exists
+    while len(done) < len(graph):
+        ready = [m for m in graph if m not in done and graph[m] <= done]
+        assert ready, f"import cycle among {sorted(set(graph) - done)}"
+        done |= set(ready)

@@ -310,7 +310,8 @@ def test_no_wall_look_is_a_louder_tv_for_the_rnd_target():
     about as widely as the others (`experiments/look_loudness.py` calibrated them). A look
     that spread it several times wider would pay a prediction-error bonus several times
     higher at the same accuracy: the bright cyan look did (4.2x at these sizes, 6.2x at full)."""
-    from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, mywayhome_map, random_walks
+    from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, random_walks
+    from simjax.envs.doom import mywayhome_map
     from simjax.novelty.networks import RNDTarget
 
     base = mywayhome_layout([10])

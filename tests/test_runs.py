@@ -167,7 +167,7 @@ def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path
 
 def test_a_checkpoint_whose_poses_store_their_heading_still_restores(tmp_path):
     # motion.Pose derives its heading from its angle; checkpoints written before kept both
-    from simjax.envs import motion
+    from simjax.envs.doom import motion
 
     pose = motion.Pose.at(np.array([3.0, 4.0], np.float32), 1.0)
     old = {"pose": {"pos": pose.pos, "heading": pose.heading, "vel": pose.vel, "angle": pose.angle,

@@ -1,12 +1,13 @@
 """simjax's MyWayHome against real ViZDoom: 32 seeded random walks of 100 steps, replayed in
-both worlds (simjax.envs.fidelity). The bounds are the ones the world must keep: Doom's integer
+both worlds (simjax.envs.doom.fidelity). The bounds are the ones the world must keep: Doom's integer
 heading exactly, positions within a player's width, the same wall distances, and frames that a
 policy cannot tell apart by much (62 levels per pixel before the Freedoom textures and light)."""
 
 import numpy as np
 import pytest
 
-from simjax.envs import fidelity, make
+from simjax.envs import make
+from simjax.envs.doom import fidelity
 
 
 @pytest.fixture(scope="module")

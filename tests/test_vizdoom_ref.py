@@ -1,4 +1,4 @@
-"""The ViZDoom oracle (simjax.envs.vizdoom_ref): determinism, the start-pose patch, the action
+"""The ViZDoom oracle (simjax.envs.doom.vizdoom_ref): determinism, the start-pose patch, the action
 mapping against motion facts measured in ViZDoom (shared/reference/vizdoom_facts.md), and the
 area resize. Skipped where vizdoom is not installed."""
 
@@ -10,8 +10,8 @@ import pytest
 
 pytest.importorskip("vizdoom")
 
-from simjax.envs import vizdoom_ref as vr  # noqa: E402
-from simjax.envs.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT  # noqa: E402
+from simjax.envs.doom import vizdoom_ref as vr  # noqa: E402
+from simjax.envs.doom.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT  # noqa: E402
 
 # 640 angle units a tic at walking speed, 320 for the first 5 tics a turn button is held,
 # in a 65536-unit turn: one step from rest (4 tics) turns 1280 units, the next 2240.

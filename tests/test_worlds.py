@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 from helpers import walk
 
-from simjax.envs import dmlab_maze, make, melon, motion, raycaster
-from simjax.envs.dmlab_maze import DMLabMazeGenerator
-from simjax.envs.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator, random_spanning_tree
+from simjax.envs import make, raycaster
+from simjax.envs.dmlab import dmlab_maze, melon
+from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
+from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator, random_spanning_tree
+from simjax.envs.doom import motion
 
 
 def _placed(env, x, y, degrees, key=0):

@@ -5,11 +5,11 @@
 Reads the WADs shipped inside the installed ``vizdoom`` package (``freedoom2.wad``, the IWAD
 ViZDoom renders with, and ``scenarios/my_way_home.wad``, the map) and writes the textures of
 the map's walls, its floor/ceiling flat, the goal item's sprite, the palette and light tables,
-and per-wall texture alignment in the row order of ``simjax/envs/mywayhome_map.py``.
-WADs are read with ``simjax/envs/wad.py``, the project's one WAD reader, loaded from its file
+and per-wall texture alignment in the row order of ``simjax/envs/doom/mywayhome_map.py``.
+WADs are read with ``simjax/envs/doom/wad.py``, the project's one WAD reader, loaded from its file
 together with the map module: only numpy and the standard library are used, so the asset can be
 rebuilt (and the tests can check it against a fresh conversion) wherever vizdoom is installed.
-See ``simjax/envs/doom_assets.py`` for what each key holds.
+See ``simjax/envs/doom/doom_assets.py`` for what each key holds.
 """
 
 from __future__ import annotations
@@ -23,22 +23,22 @@ import struct
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ENVS = os.path.join(REPO, "simjax", "envs")
-DEFAULT_OUT = os.path.join(ENVS, "assets", "freedoom_mywayhome.npz")
+DOOM = os.path.join(REPO, "simjax", "envs", "doom")
+DEFAULT_OUT = os.path.join(DOOM, "assets", "freedoom_mywayhome.npz")
 FLAT = "FLAT1_1"
 SPRITE = "ARM1A0"
 
 
-def load_envs_module(name: str):
-    """The module ``simjax/envs/<name>.py``, loaded from its file so that jax (imported by
+def load_doom_module(name: str):
+    """The module ``simjax/envs/doom/<name>.py``, loaded from its file so that jax (imported by
     simjax.envs) is not needed here."""
-    spec = importlib.util.spec_from_file_location(name, os.path.join(ENVS, f"{name}.py"))
+    spec = importlib.util.spec_from_file_location(name, os.path.join(DOOM, f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-Wad = load_envs_module("wad").Wad
+Wad = load_doom_module("wad").Wad
 
 
 def decode_picture(data: bytes) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
@@ -189,7 +189,7 @@ def convert(vizdoom_path: str | None = None, verbose: bool = False) -> dict[str,
     vizdoom_path = vizdoom_path or vizdoom_dir()
     iwad = Wad.load(os.path.join(vizdoom_path, "freedoom2.wad"))
     level = Wad.load(os.path.join(vizdoom_path, "scenarios", "my_way_home.wad"))
-    game_map = load_envs_module("mywayhome_map")
+    game_map = load_doom_module("mywayhome_map")
     names = tuple(n.upper() for n in game_map.TEXTURE_NAMES)
 
     playpal = np.frombuffer(iwad.find("PLAYPAL"), np.uint8, 768).reshape(256, 3).copy()

@@ -8,13 +8,13 @@ MyWayHome (paper section 3.1, appendix B.1; spawn choices recorded in the README
 - ``maze-tiny``: one 320x128 room with the goal 160 units from a fixed spot, random heading,
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
 
-The paper's other two worlds (``simjax.envs.melon``, ``simjax.envs.explore_goals``):
+The paper's other two worlds (``simjax.envs.dmlab.melon``, ``simjax.envs.dmlab.explore_goals``):
 - ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
   melon (+20, success); 525 steps, 3 actions (the paper's rules);
 - ``melon-dmlab``: the same map under DMLab's level rules: the melon puts the agent back at the
   start with every fruit back and the episode goes on; 900 steps, 3 actions;
 - ``explore-goals``: Explore Goal Locations Small as DeepMind Lab's level scripts have it: a new
-  11x11 maze with up to 4 rooms every episode (DMLab's generator, ``simjax.envs.dmlab_maze``),
+  11x11 maze with up to 4 rooms every episode (DMLab's generator, ``simjax.envs.dmlab.dmlab_maze``),
   the goal fixed for the episode in a room, +10 per goal reached, then the agent alone
   respawns at a room's spawn point; 1350 steps, 3 actions;
 - ``explore-goals-paper``: the paper's wording of it: a 9x9 maze without rooms, a new start and
@@ -32,11 +32,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from simjax.envs import mywayhome_map
+from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
+from simjax.envs.dmlab.melon import MELON_TASK, MelonLevelEnv, melon_layout
+from simjax.envs.doom import mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
-from simjax.envs.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
-from simjax.envs.melon import MELON_TASK, MelonLevelEnv, melon_layout
 
 GYMNAX_PREFIX = "gymnax:"
 
@@ -49,7 +49,7 @@ def mywayhome_layout(spawn_ids=None) -> Layout:
 
 def mywayhome_look(layout: Layout):
     """MyWayHome's walls as ViZDoom draws them (Freedoom's textures, the map's x-offsets)."""
-    from simjax.envs import doom_assets, doom_render
+    from simjax.envs.doom import doom_assets, doom_render
 
     assets = doom_assets.load()
     return doom_render.build_look(layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],

@@ -1,7 +1,7 @@
 """First-person maze navigation as a brax ``Env``: MyWayHome tasks (paper section 3.1, B.1).
 
 An agent step repeats one of 4 actions {turn left, turn right, forward, no-op} (or the first 3,
-``MazeTask.num_actions``) for 4 tics of Doom's motion (``simjax.envs.motion``) and renders
+``MazeTask.num_actions``) for 4 tics of Doom's motion (``simjax.envs.doom.motion``) and renders
 one 42x42 RGB frame: as ViZDoom draws it (``doom_render``) where the env has a ``DoomLook``,
 else with the invented looks of ``raycaster``. Items give their reward on the first touch in an episode
 and disappear; touching one that ``ends`` (the goal) ends the episode as a success
@@ -26,8 +26,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import doom_render, motion, raycaster
+from simjax.envs import raycaster
 from simjax.envs.base import Env, State
+from simjax.envs.doom import doom_render, motion
 from simjax.envs.episodes import episode_metrics, given_actions, rollout
 
 

@@ -20,7 +20,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import motion, raycaster, vizdoom_ref
+from simjax.envs import raycaster
+from simjax.envs.doom import motion, vizdoom_ref
 
 # ViZDoom's 8-bit depth buffer against the perpendicular distance to the wall (160x120 screen,
 # horizon row 59), a straight line fitted to 1,600 columns of one walk (seed 3, 40 steps):

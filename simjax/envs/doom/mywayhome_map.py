@@ -2,7 +2,7 @@
 
 Converted once from ``shared/reference/my_way_home_map.json`` (the scenario's UDMF TEXTMAP).
 Doom map units, y grows upward. Every wall is an axis-aligned segment on a 16-unit grid;
-the collision code relies on that (see ``simjax.envs.motion``).
+the collision code relies on that (see ``simjax.envs.doom.motion``).
 """
 
 TEXTURE_NAMES = ('BIGDOOR2', 'CEIL4_2', 'CRATE2', 'COMP01', 'TLITE6_1', 'FLOOR1_6', 'SILVER2', 'SFALL2', 'BIGBRIK1',)

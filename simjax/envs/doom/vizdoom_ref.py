@@ -87,10 +87,10 @@ from functools import cache
 import numpy as np
 import vizdoom as vzd
 
-from simjax.envs.doom_render import area_matrix
-from simjax.envs.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
-from simjax.envs.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
-from simjax.envs.wad import Wad
+from simjax.envs.doom.doom_render import area_matrix
+from simjax.envs.doom.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
+from simjax.envs.doom.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
+from simjax.envs.doom.wad import Wad
 
 TICS_PER_STEP = 4
 LIVING_REWARD_PER_TIC = -0.0001  # the scenario's; our tasks have none

@@ -1,7 +1,7 @@
 """Doom WAD files: read the lump directory, look lumps up by name, write a PWAD back.
 
 The one WAD reader of the project: ``tools/freedoom_assets.py`` reads the textures, palette
-and map lumps of the asset with it, and ``simjax.envs.vizdoom_ref`` rewrites the scenario's
+and map lumps of the asset with it, and ``simjax.envs.doom.vizdoom_ref`` rewrites the scenario's
 wad with it. Standard library only and no imports from simjax, so that the tool can load this
 file by its path without importing jax (which ``simjax.envs`` does).
 """

@@ -28,7 +28,7 @@ over, so this renderer computes the averaged frame directly, exactly where it ca
   transparent texels as partial coverage after averaging; a nearer wall hides them per column.
 - MyWayHome's ViZDoom frames show no weapon (the scenario's player holds none) and no HUD.
 
-Textures, palette and sprite come from Freedoom (``simjax/envs/assets``, converted from the
+Textures, palette and sprite come from Freedoom (``simjax/envs/doom/assets``, converted from the
 ``freedoom2.wad`` that ViZDoom ships by ``tools/freedoom_assets.py``).
 """
 
@@ -151,7 +151,7 @@ def _prefix_down(columns: np.ndarray, rows: int) -> np.ndarray:
 def build_look(walls: raycaster.Walls, texture_names, offsets_x, reversed_, assets: dict | None = None) -> DoomLook:
     """The renderer's arrays for a map whose wall rows use ``texture_names`` (by index), with
     Doom's texture x-offset and u direction per row (from the map's sidedefs)."""
-    from simjax.envs import doom_assets
+    from simjax.envs.doom import doom_assets
 
     assets = doom_assets.load() if assets is None else assets
     textures = [assets[f"wall_{n}"] for n in texture_names]

@@ -10,7 +10,7 @@
   ``factories/explore/factory.lua``: each episode ``maze_generation.randomMazeGeneration`` draws
   an 11x11 text maze with up to 4 rooms (3 to 5 cells a side), corridors carved around them, one
   connection between every two touching regions, dead ends removed, 5 spawn points 'P' and 4
-  goal candidates 'G' per room (``simjax.envs.dmlab_maze`` has each value and its source);
+  goal candidates 'G' per room (``simjax.envs.dmlab.dmlab_maze`` has each value and its source);
 - the goal (goal_locations_factory.lua ``level:start``): one 'G' cell drawn uniformly once per
   episode; it stays there all episode;
 - the start and every restart (``level:restart``): a uniformly drawn 'P' cell reachable from
@@ -56,8 +56,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import motion, raycaster
-from simjax.envs.dmlab_maze import DMLabMazeGenerator
+from simjax.envs import raycaster
+from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
+from simjax.envs.doom import motion
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
 
 _FAR = 1e9

@@ -1,0 +1,3 @@
+"""The paper's two DeepMind Lab levels rebuilt on the maze env (``simjax.envs.maze``):
+``melon`` (Stairway to Melon) and ``explore_goals`` (Explore Goal Locations Small, its mazes
+from DMLab's generator, ``dmlab_maze``)."""
