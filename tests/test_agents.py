@@ -129,7 +129,7 @@ def test_a_config_is_checked_without_building_an_environment(monkeypatch, tmp_pa
 def test_every_stored_run_folder_still_loads():
     from pathlib import Path
 
-    folders = [p.parent for p in Path(__file__).resolve().parent.parent.glob("experiments/results/*/config.json")]
+    folders = [p.parent for p in Path(__file__).resolve().parent.parent.glob("experiments/results/**/config.json")]
     assert folders
     for folder in folders:
         runs.load_config(folder)
