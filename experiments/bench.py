@@ -26,6 +26,10 @@ Measures, each as the median of several calls of one compiled program (compile t
 - a sweep's padding overhead: SIM's loop for L = 1..5 (H = 10) as one 5-member program with
   windows laid out for L = 5, against the 5 programs built each for its own L, run one after
   the other (what 5 separate runs do).
+- Gymnasium's API (``bench_gymnasium``): simjax's vector env (``simjax.gymnasium_env``, N envs
+  in one jitted call, numpy in and out, next-step autoreset) at 1, 16 and 256 envs, against
+  ViZDoom's own Gymnasium env ``VizdoomMyWayHome-v1`` at the same 4 tics per agent step, one env
+  and one per core (``AsyncVectorEnv``), random actions, in the same run.
 ``--only devices`` compares 2 SIM seeds on one CPU device with the same sharded over two
 (``--xla_force_host_platform_device_count=2``), each in a fresh process.
 """
@@ -366,13 +370,92 @@ def bench_ec_pretraining(task: str, num_envs: int = 16, updates: int = 4, **sett
             "flops_per_pair": _xla_flops(pre.train, state) / pre.batch}
 
 
+def _gym_steps_per_s(step, num_envs: int, min_seconds: float, min_calls: int) -> float:
+    """Agent steps/s of ``step()`` (one call steps ``num_envs`` envs), called for at least
+    ``min_calls`` calls and ``min_seconds`` seconds."""
+    calls, t0 = 0, time.perf_counter()
+    while calls < min_calls or time.perf_counter() - t0 < min_seconds:
+        step()
+        calls += 1
+    return num_envs * calls / (time.perf_counter() - t0)
+
+
+def bench_gymnasium(task: str = "maze-dense", env_counts=(1, 16, 256), min_seconds: float = 5.0,
+                    min_calls: int = 20) -> list[dict]:
+    """Agent steps/s through Gymnasium's API, as a Gymnasium user steps: random actions drawn on
+    the host each call, numpy in and out, episodes restarted as Gymnasium says.
+
+    - simjax: ``gymnasium.make_vec(ID, num_envs=N)``, the vector env of ``simjax.gymnasium_env``
+      (all N envs in one jitted call; next-step autoreset), for each N in ``env_counts``;
+      ``compile_s`` is its first reset and step, compile included;
+    - ViZDoom: its own Gymnasium env ``VizdoomMyWayHome-v1`` with ``frame_skip=4`` (simjax's 4
+      tics per agent step), otherwise the scenario as shipped (320x240 screen, its 5 buttons as
+      ``Discrete(6)``, 2100-tic episodes): one env (``gymnasium.make``, reset by hand at an
+      episode's end), and one env per core in Gymnasium's ``AsyncVectorEnv`` (a process each).
+    ``task`` picks simjax's task (a MyWayHome one; others fall back to ``maze-dense``)."""
+    import gymnasium
+    import numpy as np
+    import vizdoom.gymnasium_wrapper  # noqa: F401  (registers VizdoomMyWayHome-v1)
+
+    from simjax import gymnasium_env
+
+    task = task if task in gymnasium_env.ENV_IDS else "maze-dense"
+    rng = np.random.default_rng(0)
+    rows = []
+    for n in env_counts:
+        envs = gymnasium.make_vec(gymnasium_env.ENV_IDS[task], num_envs=n)
+        actions = lambda envs=envs, n=n: rng.integers(0, envs.single_action_space.n, size=n)
+        t0 = time.perf_counter()
+        envs.reset(seed=0)
+        envs.step(actions())
+        compile_s = time.perf_counter() - t0
+        rate = _gym_steps_per_s(lambda envs=envs, a=actions: envs.step(a()), n, min_seconds, min_calls)
+        rows.append({"what": f"simjax `{gymnasium_env.ENV_IDS[task]}`, vector env", "envs": n, "steps_per_s": rate,
+                     "compile_s": compile_s})
+        envs.close()
+
+    env = gymnasium.make("VizdoomMyWayHome-v1", frame_skip=4)
+    env.reset(seed=0)
+
+    def vizdoom_step():
+        _, _, terminated, truncated, _ = env.step(int(rng.integers(0, env.action_space.n)))
+        if terminated or truncated:
+            env.reset()
+
+    rows.append({"what": "ViZDoom `VizdoomMyWayHome-v1`, frame_skip=4", "envs": 1,
+                 "steps_per_s": _gym_steps_per_s(vizdoom_step, 1, min_seconds, min_calls), "compile_s": None})
+    env.close()
+    n = os.cpu_count() or 1
+    # spawned, not forked: this process runs JAX's threads
+    envs = gymnasium.make_vec("VizdoomMyWayHome-v1", num_envs=n, vectorization_mode="async",
+                              vector_kwargs={"context": "spawn"}, frame_skip=4)
+    envs.reset(seed=0)
+    step = lambda: envs.step(rng.integers(0, envs.single_action_space.n, size=n))
+    rows.append({"what": "ViZDoom `VizdoomMyWayHome-v1`, frame_skip=4, `AsyncVectorEnv` (a process per env)", "envs": n,
+                 "steps_per_s": _gym_steps_per_s(step, n, min_seconds, min_calls), "compile_s": None})
+    envs.close()
+    return rows
+
+
+def gymnasium_lines(rows: list[dict]) -> list[str]:
+    """``bench_gymnasium``'s rows: one table, simjax's vector env and ViZDoom side by side."""
+    vizdoom = next(r for r in rows if r["what"].startswith("ViZDoom") and r["envs"] == 1)["steps_per_s"]
+    lines = ["Through Gymnasium's API (`bench_gymnasium`: random actions drawn on the host each call, numpy in and out, "
+             "episodes restarted as Gymnasium says; 4 tics per agent step in both):", "",
+             "| env | envs | agent steps/s | x one ViZDoom env | compile s |", "|---|---:|---:|---:|---:|"]
+    for r in rows:
+        compile_s = "" if r["compile_s"] is None else f"{r['compile_s']:.1f}"
+        lines.append(f"| {r['what']} | {r['envs']} | {r['steps_per_s']:,.0f} | {r['steps_per_s'] / vizdoom:.1f} | {compile_s} |")
+    return lines
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("sweep", "devices"), default=None,
-                        help="run only the sweep-overhead or the device-count rows")
+    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium"), default=None,
+                        help="run only the sweep-overhead, the device-count or the Gymnasium rows")
     args = parser.parse_args(argv)
     if args.devices_probe:
         print(json.dumps(devices_probe(args.task)))
@@ -397,6 +480,7 @@ def main(argv=None) -> int:
     sweep = bench_sweep(args.task)
     loops = [bench_loop(args.task, algo, seeds) for algo in LOOP_ALGOS for seeds in (1, 2, 3, 4)]
     parts = [bench_parts(args.task, algo) for algo in LOOP_ALGOS]
+    gym_rows = bench_gymnasium(args.task)
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
         "",
@@ -441,6 +525,7 @@ def main(argv=None) -> int:
               "of the matmul peak); the paper's 0.6M steps at 10 passes of one pair per 4 steps are 1.5M pairs."]
     flops = {r["algo"]: r["flops_per_step"] for r in novelties} | {"a2c": trains[0]["flops_per_step"]}
     lines += ["", *loop_lines(loops, flops, peak), "", *parts_lines(parts, peak), "", *sweep_lines(sweep)]
+    lines += ["", *gymnasium_lines(gym_rows)]
     per_step = 1.0 / worlds["explore-goals"]["steps_per_s"]
     lines += ["", "Maze generation alone (1024 mazes per call, `vmap`):", ""]
     lines += [(f"- `explore-goals-paper`, {r['cells']}x{r['cells']} cells: {r['mazes_per_s']:,.0f} mazes/s"
@@ -528,7 +613,12 @@ def report_only(args) -> int:
     lines = [f"## {dt.date.today().isoformat()}: `python experiments/bench.py --only {args.only}` ({args.task})", "",
              f"Machine: {os.cpu_count()} cores, jax {jax.__version__}; float32 matmul peak measured now: "
              f"{peak / 1e9:.0f} GFLOP/s.", ""]
-    lines += sweep_lines(bench_sweep(args.task)) if args.only == "sweep" else device_lines(bench_devices(args.task))
+    if args.only == "sweep":
+        lines += sweep_lines(bench_sweep(args.task))
+    elif args.only == "devices":
+        lines += device_lines(bench_devices(args.task))
+    else:
+        lines += gymnasium_lines(bench_gymnasium(args.task))
     lines += ["", f"Took {time.time() - started:.0f} s.", ""]
     text = "\n".join(lines)
     print(text)
