@@ -4,6 +4,7 @@ pretraining on a small maze, and a run end to end. Networks here are tiny (width
 features); the paper's sizes are checked by shape only (``jax.eval_shape``, nothing compiled)."""
 
 import csv
+import json
 
 import chex
 import jax
@@ -128,7 +129,10 @@ def test_ec_is_made_from_settings():
     model = make_model(settings, A)
     assert isinstance(model, EC) and (model.capacity, model.width, model.features, model.online) == (50, 8, 32, True)
     assert model.history == model.window and EC(A).history == 0
-    assert model.beta == 1.0 and EC(A).beta == BETA == TrainConfig().ec_beta
+    assert model.beta == 1.0 and EC(A).beta == BETA == 0.5
+    # the default follows the EC paper's rule: 1 where an episode can end early, else the original 0.5
+    assert TrainConfig(algo="ec").ec_beta == TrainConfig(algo="ec", env="melon").ec_beta == 1.0
+    assert TrainConfig(algo="ec", env="explore-goals").ec_beta == TrainConfig(algo="ec", env="melon-dmlab").ec_beta == BETA
     assert TrainConfig(algo="ec", ec_beta=1.0).novelty.ec_beta == 1.0
     for bad in (-0.1, 1.5):
         with pytest.raises(ValueError, match="--ec-beta"):
@@ -385,3 +389,12 @@ def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus
     first = jax.tree.leaves(saved)[0]
     np.testing.assert_array_equal(first[0], first[2])  # point 0 and point 1 of seed 0
     assert not np.array_equal(first[0], first[1])  # seed 0 and seed 1
+
+
+def test_a_stored_config_without_ec_beta_loads_with_the_offset_it_trained_with(tmp_path):
+    # --ec-beta did not exist while the offset was 0.5; today's default for this task is 1
+    runs.write_config(tmp_path, TrainConfig(algo="ec", env="maze-very-sparse"))
+    record = json.loads((tmp_path / "config.json").read_text())
+    assert record["config"].pop("ec_beta") == 1.0
+    (tmp_path / "config.json").write_text(json.dumps(record))
+    assert runs.load_config(tmp_path).ec_beta == 0.5

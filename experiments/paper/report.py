@@ -129,21 +129,21 @@ def flag_text(value) -> str:
     return str(value)
 
 
-def _defaults(algo: str) -> dict | None:
-    """TrainConfig's defaults for ``algo`` (imported only here: it imports JAX, compiles nothing)."""
+def _defaults(config: dict) -> dict | None:
+    """TrainConfig's defaults for ``config``'s task and method (some depend on them: beta on the
+    method, EC's bonus offset on the task); imported only here: it imports JAX, compiles nothing."""
     try:
-        from simjax.agents.config import PAPER_BONUS_SCALE, TrainConfig
-    except Exception:  # the learner mid-edit: every field is then spelled out
+        from simjax.agents.config import TrainConfig
+
+        return dataclasses.asdict(TrainConfig(env=config.get("env", "maze-very-sparse"), algo=config.get("algo", "a2c")))
+    except Exception:  # the learner mid-edit, or a task unknown here: every field is then spelled out
         return None
-    defaults = {f.name: f.default for f in dataclasses.fields(TrainConfig)}
-    defaults["bonus_scale"] = PAPER_BONUS_SCALE.get(algo, defaults["bonus_scale"])
-    return defaults
 
 
 def config_flags(config: dict, skip: tuple[str, ...] = ()) -> list[str]:
     """``--env E --algo A --total-steps T --num-seeds N`` and every other field of ``config``
     that differs from today's default (all of them if the defaults cannot be read)."""
-    defaults = _defaults(config.get("algo", "a2c"))
+    defaults = _defaults(config)
     first = ("env", "algo", "total_steps", "num_seeds")
     out = []
     for name in list(first) + [k for k in config if k not in first]:

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simjax.envs import check_name
+from simjax.envs import check_name, episodes_end_early
 from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, PretrainPlan, flag
 
 ALGOS = ("a2c",) + MODELS
@@ -82,8 +82,9 @@ class TrainConfig:
                                 "there (the paper's 0.6M shift); 0: no pretraining")
     ec_pretrain_epochs: int = _f(10, "EC: pretraining updates (batch 64), as passes over the pretraining "
                                  "frames at one pair per 4 steps")
-    ec_beta: float = _f(0.5, "EC: the bonus is alpha * (beta - similarity); the original code's 0.5, which the EC "
-                        "paper gives for fixed-duration episodes (1 where an episode can end early)")
+    ec_beta: float | None = _f(None, "EC: the bonus is alpha * (beta - similarity) (default: the EC paper's rule, "
+                               "1 for tasks whose episodes can end early, e.g. at the goal, 0.5 (the original "
+                               "code's) where every episode runs to its step limit)")
     ec_online: bool = _f(False, "EC: ECO, the reachability network also trains during the run, on pairs "
                          "of the policy's own recent frames")
     obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
@@ -102,6 +103,8 @@ class TrainConfig:
             raise ValueError(f"unknown algo {self.algo!r}; known algos: {', '.join(ALGOS)}")
         if self.bonus_scale is None:
             object.__setattr__(self, "bonus_scale", PAPER_BONUS_SCALE[self.algo])
+        if self.ec_beta is None:
+            object.__setattr__(self, "ec_beta", 1.0 if episodes_end_early(self.env) else 0.5)
         for name in ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{flag(name)} must be a positive integer, got {getattr(self, name)}")

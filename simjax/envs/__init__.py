@@ -93,6 +93,17 @@ def check_name(name: str) -> None:
         )
 
 
+# tasks whose episodes always run to their step limit (no goal or death ends one early)
+FIXED_LENGTH_TASKS = frozenset({"melon-dmlab", "explore-goals", "explore-goals-paper"})
+
+
+def episodes_end_early(name: str) -> bool:
+    """Whether an episode of task ``name`` can end before its step limit (the maze-* goal, the
+    melon; gymnax environments terminate on their own)."""
+    check_name(name)
+    return name not in FIXED_LENGTH_TASKS
+
+
 def make(name: str):
     """Build the task registered under ``name``, or the gymnax environment ``gymnax:NAME``."""
     check_name(name)

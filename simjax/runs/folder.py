@@ -69,8 +69,13 @@ def _read_config(run_dir: Path) -> dict:
     return json.loads(path.read_text())
 
 
+# settings whose default has changed since some stored configs were written without them: the
+# value those runs trained with (--ec-beta did not exist while EC's bonus offset was 0.5)
+TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5}
+
+
 def load_config(run_dir: Path) -> TrainConfig:
-    return TrainConfig(**_read_config(run_dir)["config"])
+    return TrainConfig(**(TRAINED_BEFORE_THE_FLAG | _read_config(run_dir)["config"]))
 
 
 def load_sweep(run_dir: Path) -> dict[str, list]:
