@@ -142,13 +142,14 @@ def _defaults(config: dict) -> dict | None:
 
 def config_flags(config: dict, skip: tuple[str, ...] = ()) -> list[str]:
     """``--env E --algo A --total-steps T --num-seeds N`` and every other field of ``config``
-    that differs from today's default (all of them if the defaults cannot be read)."""
+    that differs from today's default for its task and method (all of them if the defaults cannot
+    be read); EC's settings only for EC."""
     defaults = _defaults(config)
     first = ("env", "algo", "total_steps", "num_seeds")
     out = []
     for name in list(first) + [k for k in config if k not in first]:
-        if name in skip or name not in config:
-            continue
+        if name in skip or name not in config or (name.startswith("ec_") and config.get("algo") != "ec"):
+            continue  # EC's settings mean nothing to the other methods
         if name not in first and defaults is not None and name in defaults and _equal(config[name], defaults[name]):
             continue
         out += ["--" + name.replace("_", "-"), flag_text(config[name])]
