@@ -1,4 +1,4 @@
-"""Draw the README's figures: the maps from above and first-person frames.
+"""Draw the pictures of the worlds (README, docs/worlds.md): maps from above and first-person frames.
 
     python experiments/draw_figures.py
 writes docs/mywayhome_topdown.png, docs/frames.png (MyWayHome), docs/melon.png (the melon map

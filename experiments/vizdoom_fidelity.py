@@ -1,4 +1,4 @@
-"""The README's fidelity table and side-by-side figure: simjax's MyWayHome against real ViZDoom.
+"""The fidelity table and side-by-side figure of docs/worlds.md: simjax's MyWayHome against real ViZDoom.
 
     python experiments/vizdoom_fidelity.py [--walks 64] [--steps 100] [--first-seed 0]
 

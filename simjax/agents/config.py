@@ -6,7 +6,7 @@ become ``num_envs`` = 16 synchronous environments. One default differs: the lear
 1e-3, not the paper's 1e-4. A3C applies each actor's 20-step gradient on its own, so per agent
 step it makes 16x the updates of a synchronous batch of 16; at 1e-4 (and 3e-4) synchronous
 A2C did not move off the random policy's success on maze-dense in 1M steps, at 1e-3 it did
-(the README has the runs).
+(docs/results.md has the runs).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Task registry: ``make(name)`` builds any task by name.
 
-MyWayHome (paper section 3.1, appendix B.1; spawn choices recorded in the README):
+MyWayHome (paper section 3.1, appendix B.1; the tasks in docs/worlds.md):
 - ``maze-dense``: a uniformly random spot of the 17 and a uniformly random heading;
 - ``maze-sparse``: always spot 16 (the first room past the start corridor), facing east;
 - ``maze-very-sparse``: always spot 10, the map's own player start in the far-left room,

@@ -104,7 +104,7 @@ def frame_and_depth_errors(env, walks: list[dict], every: int = 1) -> dict:
 
 
 def summary(walks, motion_err, frame_err) -> dict:
-    """The numbers of the README's fidelity table."""
+    """The numbers of the fidelity table (docs/worlds.md)."""
     pos, head = motion_err["pos_err"], motion_err["heading_err_deg"]
     at = lambda t: pos[:, t][np.isfinite(pos[:, t])]
     out = {
