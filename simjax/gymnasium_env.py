@@ -1,4 +1,5 @@
-"""simjax's MyWayHome tasks as Gymnasium 1.x environments (``pip install simjax[gymnasium]``).
+"""simjax's MyWayHome tasks as Gymnasium 1.x environments (the ``gymnasium`` extra:
+``pip install -e '.[gymnasium]'``).
 
 Importing this module registers, for ``gymnasium.make`` and ``gymnasium.make_vec``:
 

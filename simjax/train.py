@@ -80,9 +80,6 @@ def new_run_folder(parser: argparse.ArgumentParser, config: TrainConfig, out: Pa
     return out
 
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-
 @contextlib.contextmanager
 def stopped_like_ctrl_c():
     """Within it, SIGTERM (what ``kill``, ``timeout`` and job schedulers send) stops the process
@@ -90,16 +87,16 @@ def stopped_like_ctrl_c():
     rows and checkpoint. Only the first SIGINT or SIGTERM interrupts: later ones are ignored, so
     a second signal cannot cut the saving short (SIGKILL still ends the process). Yields a dict
     whose "signal" is the signal that stopped it, or None."""
-    previous = {s: signal.getsignal(s) for s in SIGNALS}
+    previous = {s: signal.getsignal(s) for s in folder.STOP_SIGNALS}
     got = {"signal": None}
 
     def stop(signum, frame):
-        for s in SIGNALS:
+        for s in folder.STOP_SIGNALS:
             signal.signal(s, signal.SIG_IGN)
         got["signal"] = signum
         raise KeyboardInterrupt
 
-    for s in SIGNALS:
+    for s in folder.STOP_SIGNALS:
         signal.signal(s, stop)
     try:
         yield got

@@ -310,7 +310,8 @@ def test_a_damaged_checkpoint_is_a_one_line_error_naming_its_file(tmp_path, caps
     runs.write_checkpoint(tmp_path, {"params": np.zeros((64, 64), np.float32)}, 40, [0])
     assert runs.load_checkpoint(tmp_path)["env_steps"] == 40
     whole = (tmp_path / "checkpoint.msgpack").read_bytes()
-    for damaged in (whole[: len(whole) // 2], b"", b"\x05"):
+    assert b"float32" in whole
+    for damaged in (whole[: len(whole) // 2], b"", b"\x05", whole.replace(b"float32", b"zzzat32")):
         (tmp_path / "checkpoint.msgpack").write_bytes(damaged)
         with pytest.raises(SystemExit) as err:
             cli.main(["--resume", str(tmp_path)])

@@ -392,7 +392,7 @@ def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus
 
 
 def test_a_stored_config_without_ec_beta_loads_with_the_offset_it_trained_with(tmp_path):
-    # --ec-beta did not exist while the offset was 0.5; today's default for this task is 1
+    # a config.json without ec_beta trained with 0.5, though this task's default is 1
     runs.write_config(tmp_path, TrainConfig(algo="ec", env="maze-very-sparse"))
     record = json.loads((tmp_path / "config.json").read_text())
     assert record["config"].pop("ec_beta") == 1.0

@@ -291,3 +291,13 @@ def test_fine_patterns_are_box_filtered_not_aliased():
     fog = 1.0 - 800.0 / 1100.0
     mean = a[far_wall].reshape(-1, 3).mean(0)
     np.testing.assert_allclose(mean, fog * 255 * (base + alt) / 2, atol=fog * 255 * (base - alt).min() / 4)
+
+
+def test_the_tasks_said_to_end_early_are_those_with_an_item_that_ends_an_episode():
+    # EC's default offset follows envs.episodes_end_early, a list kept beside the registry
+    from simjax.envs import episodes_end_early
+
+    for name in TASK_NAMES:
+        env = make(name)
+        assert episodes_end_early(name) == bool(np.any(np.asarray(env.layout.items.ends))), name
+    assert episodes_end_early("gymnax:CartPole-v1")

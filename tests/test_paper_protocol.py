@@ -208,3 +208,14 @@ def test_collect_inserts_the_section_after_the_first_heading_then_replaces_only_
     again = page.read_text()
     assert "| 0.7 |" in again and "| 0.5 |" not in again and again.count(collect.BEGIN) == 1
     assert again.endswith("intro\n\n## old\n")
+
+
+def test_a_runs_command_spells_out_what_differs_from_its_tasks_defaults():
+    ec = {"env": "maze-very-sparse", "algo": "ec", "total_steps": 1000, "num_seeds": 3, "ec_pretrain_epochs": 1}
+    assert report.config_flags(ec) == ["--env", "maze-very-sparse", "--algo", "ec", "--total-steps", "1000",
+                                       "--num-seeds", "3", "--ec-pretrain-epochs", "1", "--ec-beta", "0.5"]
+    assert "--ec-beta" not in report.config_flags({**ec, "ec_beta": 1.0})  # maze-very-sparse's default
+    assert "--ec-beta" not in report.config_flags({**ec, "env": "explore-goals", "ec_beta": 0.5})
+    sim = {"env": "maze-very-sparse", "algo": "sim", "total_steps": 1000, "num_seeds": 1, "ec_beta": 0.5}
+    assert report.config_flags(sim) == ["--env", "maze-very-sparse", "--algo", "sim", "--total-steps", "1000",
+                                        "--num-seeds", "1"]

@@ -117,7 +117,7 @@ def _processes_naming(text: str) -> list[int]:
 
 
 def test_a_stop_arriving_while_a_row_and_its_checkpoint_are_written_waits_for_both():
-    from simjax.runs.training import stops_deferred
+    from simjax.runs.folder import stops_deferred
 
     events = []
 
@@ -137,9 +137,37 @@ def test_a_stop_arriving_while_a_row_and_its_checkpoint_are_written_waits_for_bo
         with stops_deferred():
             events.append("nothing pending")
         assert events[-1] == "nothing pending"
+        with pytest.raises(OSError, match="disk full"):  # a failing block's own error goes on
+            with stops_deferred():
+                signal.raise_signal(signal.SIGTERM)
+                raise OSError("disk full")
+        assert events[-1] == "nothing pending" and signal.getsignal(signal.SIGTERM) is stop
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+
+
+def test_a_stop_during_an_atomic_write_leaves_the_new_file_and_no_temporary(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from simjax.runs.folder import atomic_write
+
+    real_write = Path.write_bytes
+
+    def write_then_get_stopped(self, data):
+        signal.raise_signal(signal.SIGINT)  # Ctrl-C halfway through the write
+        return real_write(self, data)
+
+    target = tmp_path / "checkpoint.msgpack"
+    target.write_bytes(b"old")
+    monkeypatch.setattr(Path, "write_bytes", write_then_get_stopped)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            atomic_write(target, b"new")
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert target.read_bytes() == b"new" and [p.name for p in tmp_path.iterdir()] == ["checkpoint.msgpack"]
 
 
 def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path):
@@ -166,7 +194,7 @@ def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path
 
 
 def test_a_checkpoint_whose_poses_store_their_heading_still_restores(tmp_path):
-    # motion.Pose derives its heading from its angle; checkpoints written before kept both
+    # poses that hold a heading beside the angle it is derived from
     from simjax.envs.doom import motion
 
     pose = motion.Pose.at(np.array([3.0, 4.0], np.float32), 1.0)

@@ -145,6 +145,12 @@ def config_flags(config: dict, skip: tuple[str, ...] = ()) -> list[str]:
     that differs from today's default for its task and method (all of them if the defaults cannot
     be read); EC's settings only for EC."""
     defaults = _defaults(config)
+    try:  # what a config.json without a setting trained with
+        from simjax.runs.folder import TRAINED_BEFORE_THE_FLAG
+
+        config = config | {k: v for k, v in TRAINED_BEFORE_THE_FLAG.items() if k not in config}
+    except Exception:
+        pass
     first = ("env", "algo", "total_steps", "num_seeds")
     out = []
     for name in list(first) + [k for k in config if k not in first]:

@@ -16,7 +16,7 @@ network has a second value head V_b and the two rewards get returns of their own
     G^b_t = bonus_t + gamma * G^b_{t+1}        (on across episode ends), G^b_T = V_b(o_T)
     A_t   = (G^e_t - V_e(o_t)) + (G^b_t - V_b(o_t)),  value loss: the sum of both squared errors.
 Episodic, a positive bonus is worth about beta * r+ / (1 - gamma) to an agent that keeps going;
-once that exceeds the goal's reward, ending the episode at the goal is a loss (README).
+once that exceeds the goal's reward, ending the episode at the goal is a loss (docs/paper-differences.md).
 The auto-resetting environment returns the new episode's first frame, not the truncated
 episode's last one, so the truncation bootstrap uses V(o_t), the value of the last frame the
 episode showed; with 525-step episodes and 0/1 rewards this one-step shift is immaterial.

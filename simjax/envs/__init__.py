@@ -114,6 +114,6 @@ def make(name: str):
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MazeEnv", "MazeTask", "Layout", "ExploreGoalsEnv", "ExploreGoalsPaperEnv",
-           "mywayhome_layout", "tiny_layout", "melon_layout", "random_walks", "rollout", "given_actions",
-           "starts_episode", "episode_metrics", "uniform_policy"]
+__all__ = ["make", "check_name", "TASK_NAMES", "FIXED_LENGTH_TASKS", "episodes_end_early", "MazeEnv", "MazeTask",
+           "Layout", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
+           "random_walks", "rollout", "given_actions", "starts_episode", "episode_metrics", "uniform_policy"]

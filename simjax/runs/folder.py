@@ -19,12 +19,15 @@ evaluating, the experiments' diagnostics.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import functools
 import json
 import math
 import os
+import signal
+import threading
 from pathlib import Path
 
 from simjax.agents import TrainConfig, make_trainer
@@ -37,12 +40,37 @@ METRIC_COLUMNS = (
 _ONE_DECIMAL = ("steps_per_s", "wall_s")  # measured, not learnt: tenths are plenty
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def stops_deferred():
+    """Ctrl-C or SIGTERM arriving within this block takes effect when the block has finished,
+    through whatever handler was installed before it, so the block is never cut short (if the
+    block raises, its exception goes on and the stop is dropped: the process is ending anyway).
+    In a thread other than the main one (where Python runs no signal handler) it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending = []
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():  # None: a handler not installed from Python
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+    for s in pending:
+        signal.raise_signal(s)
+
+
 def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename, so a run stopped
-    mid-write leaves the old file or the new one, never half of one."""
+    """Write ``data`` to ``path`` through a temporary file and a rename, so a run stopped or
+    killed mid-write leaves the old file or the new one, never half of one (nor the temporary
+    file, when stopped by Ctrl-C or SIGTERM)."""
     tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    with stops_deferred():
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
 
 
 # -- config.json ----------------------------------------------------------------------------------
@@ -69,8 +97,8 @@ def _read_config(run_dir: Path) -> dict:
     return json.loads(path.read_text())
 
 
-# settings whose default has changed since some stored configs were written without them: the
-# value those runs trained with (--ec-beta did not exist while EC's bonus offset was 0.5)
+# a config.json without one of these settings was trained with this value (the code's fixed
+# value when the config was written), whatever today's default is
 TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5}
 
 
@@ -200,8 +228,8 @@ _POSE_WITH_HEADING = {"pos", "heading", "vel", "angle", "turn_tics"}
 
 
 def _drop_stored_headings(tree) -> None:
-    """Checkpoints written while ``motion.Pose`` stored its heading (now derived from its angle,
-    the same values) have a "heading" entry in each pose: drop it so they restore."""
+    """A pose entry that also holds "heading" beside the angle it is derived from (``motion.Pose``
+    computes it) loses it, so that such a checkpoint restores into today's ``Pose``."""
     if isinstance(tree, dict):
         if tree.keys() == _POSE_WITH_HEADING:
             del tree["heading"]
@@ -216,12 +244,13 @@ def load_checkpoint(run_dir: Path, template=None) -> dict:
     from flax import serialization
 
     path = Path(run_dir) / "checkpoint.msgpack"
+    damaged = lambda why: ValueError(f"{path} is damaged ({why}); restore it from a copy or start the run again")
     try:
         ckpt = serialization.msgpack_restore(path.read_bytes())
-    except ValueError as err:  # msgpack's errors for a truncated or overwritten file
-        raise ValueError(f"{path} is damaged ({err}); restore it from a copy or start the run again") from None
+    except (ValueError, TypeError) as err:  # msgpack's and flax's errors for a truncated or overwritten file
+        raise damaged(err) from None
     if not (isinstance(ckpt, dict) and {"runner", "env_steps", "seeds"} <= ckpt.keys()):
-        raise ValueError(f"{path} is damaged (not a simjax checkpoint); restore it from a copy or start the run again")
+        raise damaged("not a simjax checkpoint")
     _drop_stored_headings(ckpt["runner"])
     novelty = ckpt["runner"].get("novelty") if isinstance(ckpt.get("runner"), dict) else None
     if isinstance(novelty, dict) and "model" not in novelty:

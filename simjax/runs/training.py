@@ -24,10 +24,7 @@ seed's pretraining gives, the one it would have trained itself.
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -42,6 +39,7 @@ from simjax.runs.folder import (
     metric_columns,
     rows_up_to,
     runner_template,
+    stops_deferred,
     write_checkpoint,
     write_config,
 )
@@ -145,28 +143,6 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
 
 
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-
-@contextlib.contextmanager
-def stops_deferred():
-    """Ctrl-C or SIGTERM arriving within this block takes effect at its end, through whatever
-    handler was installed before it, so the block is never cut short. In a thread other than
-    the main one (where Python runs no signal handler) it does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    pending = []
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
-        for s in pending:
-            signal.raise_signal(s)
-
-
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         tensorboard: bool = False, sweep: dict | None = None,
         devices=None) -> Path:
@@ -248,7 +224,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
                     "a smaller --learning-rate or --max-grad-norm may help")
             rate = steps_per_chunk * len(batch) / (now - last)
             last = now
-            with stops_deferred():  # a row and its checkpoint are written together or not at all
+            with stops_deferred():  # a Ctrl-C or SIGTERM waits until the rows and their checkpoint are written
                 for i, (point, seed) in enumerate(batch):
                     values = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
                     log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start}, point)

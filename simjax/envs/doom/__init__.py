@@ -3,6 +3,7 @@
 (``doom_assets``, the ``assets/`` it reads; ``wad`` reads WAD files), and the real game beside it:
 ``vizdoom_ref`` drives ViZDoom, ``fidelity`` measures simjax against it.
 
-Every maze world draws and moves with this engine (``simjax.envs.maze``), the DMLab ones too.
+Every maze world moves with this motion (``simjax.envs.maze``), the DMLab ones too; they draw
+with the raycaster's invented looks, MyWayHome with this renderer.
 Imports here reach down to ``simjax.envs.raycaster`` only.
 """
