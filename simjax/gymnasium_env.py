@@ -166,6 +166,25 @@ def _copy_out(arrays):
     return tuple(np.array(a) for a in jax.device_get(arrays))
 
 
+RENDER_MODES = ["rgb_array"]
+
+
+def _check_render_mode(render_mode) -> None:
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode must be None or one of {RENDER_MODES}, got {render_mode!r}")
+
+
+def _renders(render_mode) -> bool:
+    """Whether ``render()`` has a frame to give; warns as Gymnasium's envs do when it has not."""
+    if render_mode is None:
+        gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array'")
+    return render_mode is not None
+
+
+def _action_list(n: int) -> str:
+    return ", ".join(f"{i} {m}" for i, m in enumerate(ACTION_MEANINGS[:n]))
+
+
 def _check_options(options) -> None:
     if options:
         raise ValueError(f"reset takes no options, got {sorted(options)}")
@@ -174,11 +193,10 @@ def _check_options(options) -> None:
 class SimjaxEnv(gymnasium.Env):
     """One simjax maze task as a ``gymnasium.Env`` (module docstring: spaces, seeding, episodes)."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS}
+    metadata = {"render_modes": RENDER_MODES, "render_fps": RENDER_FPS}
 
     def __init__(self, task: str = "maze-very-sparse", render_mode: str | None = None):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        _check_render_mode(render_mode)
         self.task = task
         self.render_mode = render_mode
         self._programs = programs(task)
@@ -205,7 +223,7 @@ class SimjaxEnv(gymnasium.Env):
             raise ResetNeeded("call reset() before step()")
         if not self.action_space.contains(action):
             raise ValueError(f"action {action!r} is not in {self.action_space} "
-                             f"({', '.join(f'{i} {m}' for i, m in enumerate(ACTION_MEANINGS[:self.action_space.n]))})")
+                             f"({_action_list(self.action_space.n)})")
         actions = np.full((1,), action, np.int32)
         self._state, _, out = self._programs.step(self._state, np.zeros((1,), bool), actions)
         obs, reward, terminated, truncated = _copy_out(out)
@@ -213,8 +231,7 @@ class SimjaxEnv(gymnasium.Env):
         return self._obs.copy(), float(reward[0]), bool(terminated[0]), bool(truncated[0]), {}
 
     def render(self):
-        if self.render_mode is None:
-            gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array'")
+        if not _renders(self.render_mode):
             return None
         return None if self._obs is None else self._obs.copy()
 
@@ -223,13 +240,12 @@ class SimjaxVectorEnv(VectorEnv):
     """``num_envs`` copies of a simjax maze task stepped in one jitted ``jax.vmap`` call, numpy in
     and out, with Gymnasium's next-step autoreset (module docstring)."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": RENDER_FPS, "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": RENDER_MODES, "render_fps": RENDER_FPS, "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs: int, task: str = "maze-very-sparse", render_mode: str | None = None):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
+        _check_render_mode(render_mode)
         self.num_envs = int(num_envs)
         self.task = task
         self.render_mode = render_mode
@@ -272,13 +288,12 @@ class SimjaxVectorEnv(VectorEnv):
         if not np.issubdtype(a.dtype, np.integer):
             raise ValueError(f"actions must be integers, got dtype {a.dtype}")
         if np.any((a < 0) | (a >= n)):
-            raise ValueError(f"actions must be in [0, {n}) ({', '.join(f'{i} {m}' for i, m in enumerate(ACTION_MEANINGS[:n]))}), "
+            raise ValueError(f"actions must be in [0, {n}) ({_action_list(n)}), "
                              f"got {a[(a < 0) | (a >= n)][:8].tolist()}")
         return a.astype(np.int32)
 
     def render(self):
-        if self.render_mode is None:
-            gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array'")
+        if not _renders(self.render_mode):
             return None
         return None if self._obs is None else tuple(self._obs.copy())
 
