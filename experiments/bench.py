@@ -51,8 +51,7 @@ import jax
 import jax.numpy as jnp
 
 from simjax.agents import TrainConfig, make_trainer
-from simjax.envs import make
-from simjax.envs.maze import MazeEnv
+from simjax.envs import TASK_NAMES, make
 
 
 def time_call(fn, *args, repeats: int = 5):
@@ -467,10 +466,9 @@ def main(argv=None) -> int:
     peak = matmul_peak()
     envs = [bench_env(args.task, n) for n in (16, 48, 256, 1024, 4096)]  # 16 per seed: what a run steps
     invented = None
-    if args.task.startswith("maze-") and make(args.task).look is not None:
+    if f"{args.task}-invented-looks" in TASK_NAMES:
         # the same task drawn with raycaster's invented looks, as before the Freedoom textures
-        env = make(args.task)
-        invented = bench_env(MazeEnv(env.layout, env.task), 1024)
+        invented = bench_env(f"{args.task}-invented-looks", 1024)
     worlds = {task: bench_env(task, 1024) for task in ("melon", "explore-goals")}
     world_trains = {task: bench_train(task, 16) for task in ("melon", "explore-goals")}
     mazes = [bench_maze_generation(c) for c in (None, 9, 11)]

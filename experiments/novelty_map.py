@@ -4,7 +4,7 @@ came near each spot.
 
     python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
 
-For a run on a MyWayHome task (maze-dense, -sparse, -very-sparse) with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
+For a run on a MyWayHome task (``simjax.envs.MYWAYHOME_TASKS``) with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
 uniform random walks of ``--steps`` steps (random headings) are scored by the checkpoint's
 novelty model with its own running observation statistics; only transitions whose window lies
 wholly inside the walk count. The policy's side: 16 episodes per seed from the run's own task,
@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax.envs import MazeEnv, MazeTask, mywayhome_layout, random_walks  # noqa: E402
+from simjax.envs import MYWAYHOME_TASKS, MazeEnv, MazeTask, mywayhome_layout, random_walks  # noqa: E402
 from simjax.envs.doom import mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
@@ -43,7 +43,6 @@ from simjax.runs import restore  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
-MYWAYHOME_TASKS = ("maze-dense", "maze-sparse", "maze-very-sparse")  # the tasks on this map
 
 
 def spearman(a, b) -> float:
@@ -87,10 +86,12 @@ def main(argv=None) -> int:
             near += (np.linalg.norm(p[:, None] - xy[None], axis=-1).min(axis=0) < NEAR)
         visits.append(near / pos.shape[1])
 
-    # the model's side: error on random walks from every spot, with the run's frame statistics
+    # the model's side: error on random walks from every spot, with the run's frame statistics,
+    # drawn and moved as the run's own world draws and moves them
     obs, actions, last_obs, pos, ends = [], [], [], [], []
     for j, s in enumerate(spots):
-        walk_env = MazeEnv(mywayhome_layout([s]), MazeTask(f"spot-{s}", random_heading=True))
+        walk_env = MazeEnv(mywayhome_layout([s]), MazeTask(f"spot-{s}", random_heading=True), camera=env.camera,
+                           motion_params=env.motion_params, look=env.look, light=env.light)
         o, a, lo, p, d = jax.jit(lambda k, e=walk_env: random_walks(e, k, args.walks, args.steps))(
             jax.random.PRNGKey(1000 + j))
         obs.append(o), actions.append(a), last_obs.append(lo), pos.append(p), ends.append(d)

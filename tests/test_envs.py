@@ -243,6 +243,29 @@ def test_shapes_dtypes_and_determinism():
     assert env.observation_size == (42, 42, 3) and env.action_size == 4
 
 
+@pytest.mark.parametrize("name", ["maze-dense", "maze-very-sparse"])
+def test_the_invented_looks_tasks_differ_from_their_twins_only_in_the_picture(name):
+    # a diagnostic world: the same spots, motion, goal and rewards, drawn without the textures
+    keys = jax.random.split(jax.random.PRNGKey(3), 4)
+    actions = jax.random.randint(jax.random.PRNGKey(4), (40, 4), 0, 4)
+
+    def play(env):
+        def step(s, a):
+            s = jax.vmap(env.step)(s, a)
+            return s, (s.obs, s.pipeline_state.pose.pos, s.pipeline_state.pose.angle, s.reward, s.done)
+        first = jax.vmap(env.reset)(keys)
+        frames, *rest = jax.lax.scan(step, first, actions)[1]
+        return jnp.concatenate([first.obs[None], frames]), rest
+
+    textured, plain = make(name), make(f"{name}-invented-looks")
+    assert textured.look is not None and plain.look is None
+    (frames_t, rest_t), (frames_p, rest_p) = (jax.jit(play, static_argnums=0)(e) for e in (textured, plain))
+    chex.assert_trees_all_equal(rest_t, rest_p)
+    chex.assert_equal_shape([frames_t, frames_p])
+    # every frame differs: the walls and the light are another world's
+    assert np.all(np.abs(np.asarray(frames_t, int) - np.asarray(frames_p, int)).mean(axis=(2, 3, 4)) > 5)
+
+
 def test_unknown_task_lists_known_ones():
     with pytest.raises(ValueError, match="known tasks: maze-dense"):
         make("maze-nope")

@@ -5,6 +5,10 @@ MyWayHome (paper section 3.1, appendix B.1; the tasks in docs/worlds.md):
 - ``maze-sparse``: always spot 16 (the first room past the start corridor), facing east;
 - ``maze-very-sparse``: always spot 10, the map's own player start in the far-left room,
   facing east;
+- ``maze-dense-invented-looks``, ``maze-sparse-invented-looks``, ``maze-very-sparse-invented-looks``:
+  the same tasks (map, spots, Doom's motion) drawn with ``raycaster``'s invented wall looks instead
+  of Freedoom's textures and ViZDoom's light; a diagnostic world, to tell what the look does to
+  learning from what the motion does, not one of the paper's;
 - ``maze-tiny``: one 320x128 room with the goal 160 units from a fixed spot, random heading,
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
 
@@ -56,9 +60,9 @@ def mywayhome_look(layout: Layout):
                                   assets["wall_u_reversed"], assets=assets)
 
 
-def _mywayhome(name: str, spawn_ids=None, **task) -> MazeEnv:
+def _mywayhome(name: str, spawn_ids=None, textured: bool = True, **task) -> MazeEnv:
     layout = mywayhome_layout(spawn_ids)
-    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout))
+    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout) if textured else None)
 
 
 def tiny_layout() -> Layout:
@@ -66,10 +70,15 @@ def tiny_layout() -> Layout:
     return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
 
 
+# MyWayHome's three tasks: spawn spots and whether the heading is random
+_MYWAYHOME = {"maze-dense": (None, True), "maze-sparse": ([16], False), "maze-very-sparse": ([10], False)}
+MYWAYHOME_TASKS = (*_MYWAYHOME, *(f"{name}-invented-looks" for name in _MYWAYHOME))
+
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
-    "maze-dense": lambda: _mywayhome("maze-dense", random_heading=True),
-    "maze-sparse": lambda: _mywayhome("maze-sparse", [16], random_heading=False),
-    "maze-very-sparse": lambda: _mywayhome("maze-very-sparse", [10], random_heading=False),
+    **{name: (lambda name=name, spots=spots, rh=rh: _mywayhome(name, spots, random_heading=rh))
+       for name, (spots, rh) in _MYWAYHOME.items()},
+    **{f"{name}-invented-looks": (lambda name=name, spots=spots, rh=rh: _mywayhome(
+        f"{name}-invented-looks", spots, textured=False, random_heading=rh)) for name, (spots, rh) in _MYWAYHOME.items()},
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
     "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
     "melon-dmlab": MelonLevelEnv,
@@ -114,6 +123,6 @@ def make(name: str):
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "FIXED_LENGTH_TASKS", "episodes_end_early", "MazeEnv", "MazeTask",
+__all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "FIXED_LENGTH_TASKS", "episodes_end_early", "MazeEnv", "MazeTask",
            "Layout", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
            "random_walks", "rollout", "given_actions", "starts_episode", "episode_metrics", "uniform_policy"]
