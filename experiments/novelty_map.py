@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax.envs import MYWAYHOME_TASKS, MazeEnv, MazeTask, mywayhome_layout, random_walks  # noqa: E402
+from simjax.envs import MYWAYHOME_TASKS, mywayhome_spot, random_walks  # noqa: E402
 from simjax.envs.doom import mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
@@ -90,8 +90,7 @@ def main(argv=None) -> int:
     # drawn and moved as the run's own world draws and moves them
     obs, actions, last_obs, pos, ends = [], [], [], [], []
     for j, s in enumerate(spots):
-        walk_env = MazeEnv(mywayhome_layout([s]), MazeTask(f"spot-{s}", random_heading=True), camera=env.camera,
-                           motion_params=env.motion_params, look=env.look, light=env.light)
+        walk_env = mywayhome_spot(env, s)
         o, a, lo, p, d = jax.jit(lambda k, e=walk_env: random_walks(e, k, args.walks, args.steps))(
             jax.random.PRNGKey(1000 + j))
         obs.append(o), actions.append(a), last_obs.append(lo), pos.append(p), ends.append(d)

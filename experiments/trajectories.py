@@ -5,8 +5,9 @@ from above, with how much of the map it covers and how close it gets to the goal
 
 Writes RUN_DIR/trajectories.png (the first seed's episodes) and prints, per seed: success
 ratio, the mean over episodes of the number of 64x64-unit squares visited, and of the
-closest approach to the goal (units). ``--random`` adds the uniform random policy for
-comparison. Tasks with a fixed map only (the maze-* tasks and melon).
+closest approach to the goal (units), and on MyWayHome where the episodes end: how many end
+nearest each of the map's 17 spawn spots (one per room or corridor). ``--random`` adds the
+uniform random policy for comparison. Tasks with a fixed map only (the maze-* tasks and melon).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from simjax.agents import sampling_policy
-from simjax.envs import rollout, uniform_policy
+from simjax.envs import MYWAYHOME_TASKS, rollout, uniform_policy
+from simjax.envs.doom import mywayhome_map
 from simjax.runs import restore
 
 
@@ -56,6 +58,14 @@ def coverage(pos, alive, goal, square: float = 64.0):
     return np.asarray(squares), np.asarray(closest)
 
 
+def ends_near(pos, alive, spots: dict) -> dict:
+    """{spot: how many first episodes end nearest to it}, most first."""
+    ids, xy = list(spots), np.asarray(list(spots.values()))
+    last = [first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])]
+    nearest = [ids[int(np.argmin(np.linalg.norm(xy - p, axis=1)))] for p in last]
+    return dict(sorted(((s, nearest.count(s)) for s in set(nearest)), key=lambda kv: -kv[1]))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path)
@@ -70,6 +80,7 @@ def main(argv=None) -> int:
     if getattr(env, "generator", None) is not None or not hasattr(env, "layout"):
         parser.error(f"{restored.config.env} has no fixed map to draw trajectories on")
     goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
+    spots = mywayhome_map.SPAWN_SPOTS if restored.config.env in MYWAYHOME_TASKS else None
     run = jax.jit(lambda p, k: episodes(env, network, p, k, args.envs))
     drawn = None
     # only the policy parameters: they read the same from checkpoints of older env states
@@ -83,6 +94,9 @@ def main(argv=None) -> int:
         squares, closest = coverage(np.asarray(pos), np.asarray(alive), goal)
         print(f"  {name}: success {np.mean(success):.2f}, squares visited {squares.mean():.1f} "
               f"(max {squares.max()}), closest to goal {closest.mean():.0f} units (min {closest.min():.0f})")
+        if spots is not None:
+            print("    episodes end nearest spot: " + ", ".join(
+                f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), spots).items()))
         if drawn is None and params is not None:
             drawn = (name, np.asarray(pos), np.asarray(alive))
     import matplotlib

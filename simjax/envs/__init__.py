@@ -65,6 +65,13 @@ def _mywayhome(name: str, spawn_ids=None, textured: bool = True, **task) -> Maze
     return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout) if textured else None)
 
 
+def mywayhome_spot(env: MazeEnv, spot: int) -> MazeEnv:
+    """``env``'s world (its look, camera, motion and light) with every episode starting at
+    MyWayHome's spawn spot ``spot``, facing a random way: for the diagnostics' walks."""
+    return MazeEnv(mywayhome_layout([spot]), MazeTask(f"spot-{spot}", random_heading=True), camera=env.camera,
+                   motion_params=env.motion_params, look=env.look, light=env.light)
+
+
 def tiny_layout() -> Layout:
     room = [(0, 0, 320, 0, 8), (320, 0, 320, 128, 7), (320, 128, 0, 128, 8), (0, 128, 0, 0, 0)]
     return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
@@ -124,5 +131,5 @@ def make(name: str):
 
 
 __all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "FIXED_LENGTH_TASKS", "episodes_end_early", "MazeEnv", "MazeTask",
-           "Layout", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
+           "Layout", "mywayhome_spot", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
            "random_walks", "rollout", "given_actions", "starts_episode", "episode_metrics", "uniform_policy"]

@@ -1,0 +1,101 @@
+"""Where on MyWayHome does a random-network target pay most for nothing new? The spread of the
+RND target (SIM's and RND's prediction target) over random walks from each of the map's 17
+spawn spots, in each of its two worlds and through both of the novelty models' frame pipelines.
+
+    python experiments/spot_loudness.py [--walks 16] [--steps 40] [--targets 4]
+
+*Spread* is half the summed variance of the target's 64 outputs over a set of frames: the error
+of a model that predicts their mean target, averaged over ``--targets`` random targets. A
+prediction-error bonus pays about (1 - the model's relative accuracy) times the spread where
+the agent is, so a loud spot keeps paying after it has long stopped being new, and a quiet one
+pays little even before it has been seen.
+
+Worlds: MyWayHome as ViZDoom draws it (``maze-dense``) and with the invented looks
+(``maze-dense-invented-looks``); the same walks (keys, actions, motion) in both. Pipelines:
+``norm``, the runs' default (``--obs-norm true``): frames normalised per pixel by the
+statistics of all the walks' frames of that world together, as a run's running statistics
+would be; ``raw``: pixels / 255 (``--obs-norm false``); ``grey``: the mean of the three channels
+/ 255, as ICM's preprocessing and the original ICM code's 42x42 grey frames (fed to the target
+as three equal channels).
+
+Prints per spot: its distance to the goal and the spread in each (world, pipeline), then per
+column the ratio of the loudest spot to the quietest and the rank of spot 26, the last spot
+before the goal (1 = loudest of the 17).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from simjax.envs import make, mywayhome_spot, random_walks
+from simjax.envs.doom import mywayhome_map
+from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
+from simjax.novelty.networks import RNDTarget
+
+WORLDS = ("maze-dense", "maze-dense-invented-looks")
+GOAL_SPOT = 26  # the spot nearest the goal, at the head of its corridor
+
+
+def world_frames(task: str, spots, walks: int, steps: int) -> list:
+    """Per spot: the frames (walks * steps, 42, 42, 3) of ``walks`` random walks from it."""
+    one_spot = mywayhome_spot(make(task), spots[0])
+
+    @jax.jit
+    def frames(spawn, key):  # one compiled program for every spot: the spawn point is traced
+        walk_env = copy.copy(one_spot)
+        walk_env.layout = one_spot.layout._replace(spawns=spawn[None])
+        obs, *_ = random_walks(walk_env, key, walks, steps)
+        return obs.reshape((-1,) + obs.shape[2:])
+
+    return [frames(jnp.asarray(mywayhome_map.SPAWN_SPOTS[s], jnp.float32), jax.random.PRNGKey(50 + j))
+            for j, s in enumerate(spots)]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--walks", type=int, default=16, help="random walks per spot")
+    parser.add_argument("--steps", type=int, default=40, help="steps per walk")
+    parser.add_argument("--targets", type=int, default=4, help="random targets to average over")
+    args = parser.parse_args(argv)
+    if min(args.walks, args.steps, args.targets) < 1:
+        parser.error("need --walks, --steps and --targets >= 1")
+    start = time.time()
+    spots = sorted(mywayhome_map.SPAWN_SPOTS)
+    targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), jnp.zeros((1, 42, 42, 3))) for i in range(args.targets)]
+    apply = jax.jit(lambda params, x: RNDTarget().apply(params, x))
+
+    columns = {}
+    for task in WORLDS:
+        frames = world_frames(task, spots, args.walks, args.steps)
+        stack = jnp.concatenate(frames)
+        stats = RunningMeanStd.create(stack.shape[1:]).update(stack)
+        pipelines = {"norm": lambda f, st=stats: normalize_frames(f, st), "raw": lambda f: normalize_frames(f, None),
+                     "grey": lambda f: jnp.repeat(to_unit(f).mean(-1, keepdims=True), 3, axis=-1)}
+        for name, pipeline in pipelines.items():
+            columns[(task, name)] = np.asarray(
+                [np.mean([spread(apply(p, pipeline(f))) for p in targets]) for f in frames])
+
+    goal = np.asarray(mywayhome_map.GOAL_XY)
+    print(f"spread of the RND target (half its summed variance, mean of {args.targets} random targets) over "
+          f"{args.walks} random walks of {args.steps} steps from each spawn spot")
+    print("spot  to goal  " + "  ".join(f"{t.removeprefix('maze-dense')[1:] or 'ViZDoom look'}, {p}".rjust(24)
+                                       for t, p in columns))
+    for j, s in enumerate(spots):
+        dist = np.linalg.norm(np.asarray(mywayhome_map.SPAWN_SPOTS[s]) - goal)
+        print(f"{s:4d}  {dist:7.0f}  " + "  ".join(f"{v[j]:24.3f}" for v in columns.values()))
+    g = spots.index(GOAL_SPOT)
+    print("max/min       " + "  ".join(f"{v.max() / v.min():24.1f}" for v in columns.values()))
+    print(f"rank of {GOAL_SPOT}    " + "  ".join(f"{int((v > v[g]).sum()) + 1:24d}" for v in columns.values()))
+    print(f"({time.time() - start:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
