@@ -266,6 +266,17 @@ def test_the_invented_looks_tasks_differ_from_their_twins_only_in_the_picture(na
     assert np.all(np.abs(np.asarray(frames_t, int) - np.asarray(frames_p, int)).mean(axis=(2, 3, 4)) > 5)
 
 
+def test_a_spot_walk_starts_at_the_spot_in_the_runs_own_world():
+    from simjax.envs import mywayhome_spot
+
+    env = make("maze-very-sparse")
+    walk = mywayhome_spot(env, 26)
+    assert walk.look is env.look and walk.camera == env.camera and walk.motion_params == env.motion_params
+    starts = jax.jit(jax.vmap(walk.reset))(jax.random.split(jax.random.PRNGKey(0), 8)).pipeline_state.pose
+    np.testing.assert_allclose(np.asarray(starts.pos), [mywayhome_map.SPAWN_SPOTS[26]] * 8, rtol=1e-6)
+    assert np.unique(np.round(np.asarray(starts.angle), 3)).size == 8
+
+
 def test_unknown_task_lists_known_ones():
     with pytest.raises(ValueError, match="known tasks: maze-dense"):
         make("maze-nope")
