@@ -77,15 +77,20 @@ def tiny_layout() -> Layout:
     return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
 
 
-# MyWayHome's three tasks: spawn spots and whether the heading is random
+# MyWayHome's three tasks: (spawn spots, None for all 17; whether the heading is random)
 _MYWAYHOME = {"maze-dense": (None, True), "maze-sparse": ([16], False), "maze-very-sparse": ([10], False)}
 MYWAYHOME_TASKS = (*_MYWAYHOME, *(f"{name}-invented-looks" for name in _MYWAYHOME))
 
+
+def _mywayhome_task(name: str) -> Callable[[], MazeEnv]:
+    """The builder of ``name``, one of MYWAYHOME_TASKS."""
+    base = name.removesuffix("-invented-looks")
+    spots, random_heading = _MYWAYHOME[base]
+    return lambda: _mywayhome(name, spots, textured=name == base, random_heading=random_heading)
+
+
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
-    **{name: (lambda name=name, spots=spots, rh=rh: _mywayhome(name, spots, random_heading=rh))
-       for name, (spots, rh) in _MYWAYHOME.items()},
-    **{f"{name}-invented-looks": (lambda name=name, spots=spots, rh=rh: _mywayhome(
-        f"{name}-invented-looks", spots, textured=False, random_heading=rh)) for name, (spots, rh) in _MYWAYHOME.items()},
+    **{name: _mywayhome_task(name) for name in MYWAYHOME_TASKS},
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
     "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
     "melon-dmlab": MelonLevelEnv,
