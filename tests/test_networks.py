@@ -11,18 +11,41 @@ import numpy as np
 import pytest
 
 from simjax.networks import ActorCritic, Encoder
-from simjax.networks.layers import PatchConv, orthogonal
+from simjax.networks.layers import PatchConv, conv_stack, from_chwn, orthogonal, to_chwn
 
 
+@pytest.mark.parametrize("layout", ["NHWC", "CHWN"])
 @pytest.mark.parametrize("kernel,stride,padding,size", [(3, 2, "SAME", 42), (3, 2, "SAME", 21), (8, 4, "VALID", 42),
                                                         (4, 2, "VALID", 10), (3, 1, "VALID", 4), (3, 1, "SAME", 7)])
-def test_patch_conv_matches_flax_conv(kernel, stride, padding, size):
+def test_patch_conv_matches_flax_conv(kernel, stride, padding, size, layout):
     x = jax.random.normal(jax.random.PRNGKey(0), (2, 3, size, size, 5))
     ref = nn.Conv(7, (kernel, kernel), strides=(stride, stride), padding=padding)
     params = ref.init(jax.random.PRNGKey(1), x)
-    mine = PatchConv(7, kernel, stride, padding)
-    chex.assert_trees_all_equal_shapes(mine.init(jax.random.PRNGKey(1), x), params)
-    np.testing.assert_allclose(mine.apply(params, x), ref.apply(params, x), atol=1e-5, rtol=1e-5)
+    mine = PatchConv(7, kernel, stride, padding, layout=layout)
+    mine_x = to_chwn(x) if layout == "CHWN" else x
+    chex.assert_trees_all_equal_shapes(mine.init(jax.random.PRNGKey(1), mine_x), params)
+    out = mine.apply(params, mine_x)
+    np.testing.assert_allclose(from_chwn(out) if layout == "CHWN" else out, ref.apply(params, x), atol=1e-5, rtol=1e-5)
+
+
+def test_conv_stack_names_its_layers_and_matches_flax_convs_written_out():
+    class Stack(nn.Module):
+        @nn.compact
+        def __call__(self, x):
+            return conv_stack(x, (6, 4), kernel=(4, 3), stride=(2, 1), padding="VALID", activation=nn.elu)
+
+    class Written(nn.Module):
+        @nn.compact
+        def __call__(self, x):
+            x = nn.elu(nn.Conv(6, (4, 4), strides=(2, 2), padding="VALID", name="PatchConv_0")(x))
+            return nn.elu(nn.Conv(4, (3, 3), padding="VALID", name="PatchConv_1")(x))
+
+    x = jax.random.normal(jax.random.PRNGKey(0), (3, 2, 12, 12, 2))
+    params = Written().init(jax.random.PRNGKey(1), x)
+    chex.assert_trees_all_equal_shapes(Stack().init(jax.random.PRNGKey(1), x), params)
+    out = Stack().apply(params, x)
+    chex.assert_shape(out, (3, 2, 3, 3, 4))
+    np.testing.assert_allclose(out, Written().apply(params, x), atol=1e-5, rtol=1e-5)
 
 
 def test_encoder_and_actor_critic_shapes():

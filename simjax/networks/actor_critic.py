@@ -17,7 +17,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from simjax.networks.layers import PatchConv, orthogonal
+from simjax.networks.layers import conv_stack, orthogonal
 
 
 class Encoder(nn.Module):
@@ -35,8 +35,7 @@ class Encoder(nn.Module):
         if obs.dtype == jnp.uint8:
             x = x / 255.0
         if self.image:
-            x = nn.relu(PatchConv(16, kernel=3, stride=2)(x))
-            x = nn.relu(PatchConv(32, kernel=3, stride=2)(x))
+            x = conv_stack(x, (16, 32))
             x = x.reshape(x.shape[:-3] + (-1,))
         return nn.relu(nn.Dense(self.features)(x))
 

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.networks.layers import PatchConv, conv_stack, orthogonal
+from simjax.networks.layers import conv_stack, orthogonal
 
 SQRT2 = float(np.sqrt(np.float32(2.0)))  # float32's sqrt(2), in numpy: no computation on import
 
@@ -30,8 +30,7 @@ class RNDTarget(nn.Module):
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
         init = orthogonal(SQRT2)
-        for kernel, stride in ((8, 4), (4, 2), (3, 1)):
-            x = nn.leaky_relu(PatchConv(32, kernel, stride, "VALID", kernel_init=init)(x))
+        x = conv_stack(x, (32, 32, 32), (8, 4, 3), (4, 2, 1), "VALID", nn.leaky_relu, init)
         return nn.Dense(self.features, kernel_init=init)(_flatten(x))
 
 
@@ -181,10 +180,7 @@ class ICMNet(nn.Module):
 
     @nn.compact
     def __call__(self, stacks, actions):
-        x = stacks
-        for _ in range(4):
-            x = nn.elu(PatchConv(32, 3, 2)(x))
-        phi = _flatten(x)
+        phi = _flatten(conv_stack(stacks, (32, 32, 32, 32), activation=nn.elu))
         phi_t, phi_next = phi[:-1], phi[1:]
         a = jax.nn.one_hot(actions, self.num_actions)
         f = nn.relu(nn.Dense(256, name="Forward_0")(jnp.concatenate([phi_t, a], axis=-1)))
