@@ -29,6 +29,30 @@ from simjax.runs.grid import batch_inputs, grid_of
 SKIP = ("ThunkExecutor", "$", "SlinkyThreadPool", "end:", "Threadpool", "while")
 
 
+def trace_thunks(compiled, *args):
+    """Run a compiled (warmed-up) program once under the JAX profiler. Returns the wall
+    seconds, two Counters by XLA:CPU thunk name (ms of op time, summed over threads; how many
+    times it ran) and each thunk's JAX ``op_name`` from the compiled HLO's metadata."""
+    op_names = {}
+    for m in re.finditer(r"^\s*%(\S+) = [^\n]*", compiled.as_text(), re.M):
+        found = re.search(r'op_name="([^"]+)"', m.group(0))
+        op_names[m.group(1)] = found.group(1) if found else ""
+    with tempfile.TemporaryDirectory() as folder:
+        jax.profiler.start_trace(folder, create_perfetto_trace=True)
+        started = time.perf_counter()
+        jax.block_until_ready(compiled(*args))
+        wall = time.perf_counter() - started
+        jax.profiler.stop_trace()
+        trace = json.load(gzip.open(next(Path(folder).rglob("perfetto_trace.json.gz"))))
+    events = trace["traceEvents"] if isinstance(trace, dict) else trace
+    times, counts = collections.Counter(), collections.Counter()
+    for e in events:
+        if e.get("ph") == "X" and not e["name"].startswith(SKIP):
+            times[e["name"]] += e.get("dur", 0) / 1e3
+            counts[e["name"]] += 1
+    return wall, times, counts, op_names
+
+
 def kind(thunk: str, op_name: str) -> str:
     last = op_name.rsplit("/", 1)[-1]
     if "PatchConv" in op_name and last in ("slice", "concatenate", "transpose", "pad", "reshape", "add_any"):
@@ -62,23 +86,11 @@ def main(argv=None) -> int:
 
     compiled = jax.jit(jax.vmap(chunk)).lower(runner).compile()
     runner = jax.block_until_ready(compiled(runner))[0]  # warm-up
-    op_names = {}
-    for m in re.finditer(r"^\s*%(\S+) = [^\n]*", compiled.as_text(), re.M):
-        found = re.search(r'op_name="([^"]+)"', m.group(0))
-        op_names[m.group(1)] = found.group(1) if found else ""
-    with tempfile.TemporaryDirectory() as folder:
-        jax.profiler.start_trace(folder, create_perfetto_trace=True)
-        started = time.perf_counter()
-        jax.block_until_ready(compiled(runner))
-        wall = time.perf_counter() - started
-        jax.profiler.stop_trace()
-        trace = json.load(gzip.open(next(Path(folder).rglob("perfetto_trace.json.gz"))))
-    events = trace["traceEvents"] if isinstance(trace, dict) else trace
-    by_kind, thunks = collections.Counter(), 0
-    for e in events:
-        if e.get("ph") == "X" and not e["name"].startswith(SKIP):
-            thunks += 1
-            by_kind[kind(e["name"], op_names.get(e["name"], ""))] += e.get("dur", 0) / 1e3
+    wall, per_thunk, counts, op_names = trace_thunks(compiled, runner)
+    by_kind = collections.Counter()
+    for name, ms in per_thunk.items():
+        by_kind[kind(name, op_names.get(name, ""))] += ms
+    thunks = sum(counts.values())
     total = sum(by_kind.values())
     print(f"{args.algo}, {args.seeds} seed(s), N = 16, T = 20: {1000 * wall / K:.0f} ms per update (wall, "
           f"under the profiler), {thunks // K:,} thunks and {total / K:.0f} ms of op time per update")
