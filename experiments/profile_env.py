@@ -9,7 +9,7 @@ frame), the 4 tics of motion alone, and one frame alone (``env.render`` at the e
 turned by a random angle each step). Then it traces the render program and lists its largest
 thunks with the JAX operation they came from, marking the fusions that read the look's
 tables by gather (the texel lookups). ``--pause PID`` stops a training run (SIGSTOP) while it
-times and traces, and lets it go on (SIGCONT) after, even on an error.
+compiles, times and traces, and lets it go on (SIGCONT) after, even on an error.
 """
 
 from __future__ import annotations
@@ -19,15 +19,14 @@ import os
 import re
 import signal
 import sys
-import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench import time_call  # noqa: E402
 from profile_update import trace_thunks  # noqa: E402
 
 from simjax.envs import TASK_NAMES, make  # noqa: E402
@@ -100,21 +99,13 @@ def main(argv=None) -> int:
         parser.error(f"{args.task} generates its maps; this profiles the fixed-map tasks (maze-*)")
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), args.envs))
     key = jax.random.PRNGKey(1)
-    compiled = {name: fn.lower(state, key).compile() for name, fn in programs(env, args.envs, args.steps).items()}
-    for fn in compiled.values():
-        jax.block_until_ready(fn(state, key))
+    progs = programs(env, args.envs, args.steps)
+    render = progs["render (one frame)"].lower(state, key).compile()
     if args.pause:
         os.kill(args.pause, signal.SIGSTOP)
     try:
-        seconds = {}
-        for name, fn in compiled.items():
-            times = []
-            for _ in range(args.repeats):
-                started = time.perf_counter()
-                jax.block_until_ready(fn(state, key))
-                times.append(time.perf_counter() - started)
-            seconds[name] = float(np.median(times))
-        render = compiled["render (one frame)"]
+        seconds = {name: time_call(fn, state, key, repeats=args.repeats)[1] for name, fn in progs.items()}
+        jax.block_until_ready(render(state, key))  # warm-up
         wall, per_thunk, _, op_names = trace_thunks(render, state, key)
     finally:
         if args.pause:
