@@ -16,7 +16,12 @@ def walk(env, start, actions):
 
 def random_rollout(env, key, T, N, num_actions=4):
     """T random-action steps of N envs: obs (T, N, ...), reset (T, N), actions (T, N), and the
-    frame after the rollout and whether it starts an episode (the novelty models' batch)."""
+    frame after the rollout and whether it starts an episode (the novelty models' batch).
+    One compiled program: run op by op, the renderer's reset alone takes seconds."""
+    return jax.jit(lambda k: _random_rollout(env, k, T, N, num_actions))(key)
+
+
+def _random_rollout(env, key, T, N, num_actions):
     k_reset, k_act = jax.random.split(key)
     state = jax.vmap(env.reset)(jax.random.split(k_reset, N))
     actions = jax.random.randint(k_act, (T, N), 0, num_actions)

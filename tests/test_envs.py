@@ -202,11 +202,11 @@ def test_truncation_at_525_steps():
 
 
 def test_fixed_and_random_spawns():
-    sparse = jax.vmap(make("maze-sparse").reset)(jax.random.split(jax.random.PRNGKey(0), 8))
+    sparse = jax.jit(jax.vmap(make("maze-sparse").reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     np.testing.assert_allclose(np.asarray(sparse.pipeline_state.pose.pos), [mywayhome_map.SPAWN_SPOTS[16]] * 8, rtol=1e-6)
-    very = make("maze-very-sparse").reset(jax.random.PRNGKey(1))
+    very = jax.jit(make("maze-very-sparse").reset)(jax.random.PRNGKey(1))
     np.testing.assert_allclose(np.asarray(very.pipeline_state.pose.pos), mywayhome_map.PLAYER_START_XY)
-    dense = jax.vmap(make("maze-dense").reset)(jax.random.split(jax.random.PRNGKey(0), 64))
+    dense = jax.jit(jax.vmap(make("maze-dense").reset))(jax.random.split(jax.random.PRNGKey(0), 64))
     assert len({tuple(np.round(p, 2)) for p in np.asarray(dense.pipeline_state.pose.pos)}) > 8
     assert np.unique(np.round(np.asarray(dense.pipeline_state.pose.heading), 3)).size > 32
 

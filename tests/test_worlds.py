@@ -22,7 +22,7 @@ from simjax.envs.doom import motion
 
 def _placed(env, x, y, degrees, key=0):
     """A fresh state of ``env`` with the agent moved to (x, y) facing ``degrees``."""
-    state = env.reset(jax.random.PRNGKey(key))
+    state = jax.jit(env.reset)(jax.random.PRNGKey(key))
     pose = motion.Pose.at(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(degrees)))
     return state.replace(pipeline_state=state.pipeline_state._replace(pose=pose))
 
@@ -95,7 +95,7 @@ def test_melon_lemon_route_costs_one_and_the_melon_ends_the_episode():
 def test_melon_has_three_actions_and_525_steps():
     env = make("melon")
     assert env.action_size == 3 and env.task.max_steps == 525
-    states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(0)), jnp.zeros((525,), jnp.int32))
+    states = jax.jit(lambda s, a: walk(env, s, a))(jax.jit(env.reset)(jax.random.PRNGKey(0)), jnp.zeros((525,), jnp.int32))
     assert np.flatnonzero(np.asarray(states.done)).tolist() == [524]
     assert states.info["truncation"][524] == 1 and states.metrics["episode_success"][524] == 0
 
@@ -124,10 +124,11 @@ def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     env = make("melon")
     east = motion.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
     west = motion.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
-    apples, lemon = np.asarray(env.render(east)), np.asarray(env.render(west))
+    render = jax.jit(env.render)
+    apples, lemon = np.asarray(render(east)), np.asarray(render(west))
     assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
     assert _count(lemon, *YELLOW) >= 4 and _count(lemon, *RED) == 0
-    gone = np.asarray(env.render(east, None, jnp.ones((env.num_items,), bool)))
+    gone = np.asarray(render(east, None, jnp.ones((env.num_items,), bool)))
     assert _count(gone, *RED) == 0
 
 
@@ -138,14 +139,15 @@ def test_nearer_sprites_hide_farther_ones():
     sprites = raycaster.Sprites(jnp.array([[-800.0, 0.0], [-650.0, 0.0]]), jnp.array([raycaster.MELON, raycaster.APPLE]),
                                 jnp.ones(2, bool))
     eye = jnp.array([-900.0, 0.0])
-    frame = lambda visible: np.asarray(raycaster.render(walls, eye, jnp.float32(0.0), sprites._replace(visible=jnp.array(visible))))
+    render = jax.jit(raycaster.render)
+    frame = lambda visible: np.asarray(render(walls, eye, jnp.float32(0.0), sprites._replace(visible=jnp.array(visible))))
     apple = np.any(frame([False, True]) != frame([False, False]), axis=-1)  # the apple's pixels
     assert apple.sum() >= 2
     # with both drawn, every apple pixel shows the melon (the apple alone shows through nowhere)
     np.testing.assert_array_equal(frame([True, True])[apple], frame([True, False])[apple])
     # and the melon behind a nearer apple is hidden where they overlap
     near_apple = sprites._replace(pos=jnp.array([[-300.0, 0.0], [-850.0, 0.0]]))
-    seen = lambda v: np.asarray(raycaster.render(walls, eye, jnp.float32(0.0), near_apple._replace(visible=jnp.array(v))))
+    seen = lambda v: np.asarray(render(walls, eye, jnp.float32(0.0), near_apple._replace(visible=jnp.array(v))))
     apple = np.any(seen([False, True]) != seen([False, False]), axis=-1)
     np.testing.assert_array_equal(seen([True, True])[apple], seen([False, True])[apple])
 
@@ -411,7 +413,7 @@ def test_generator_rejects_bad_settings():
 
 def test_explore_goals_paper_new_maze_each_episode_same_maze_within():
     env = ExploreGoalsPaperEnv(max_steps=4)
-    states = jax.jit(lambda s, a: walk(env, s, a))(env.reset(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
+    states = jax.jit(lambda s, a: walk(env, s, a))(jax.jit(env.reset)(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
     standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
     done = np.asarray(states.done)
     assert np.flatnonzero(done).tolist() == [3, 7, 11]
@@ -423,7 +425,7 @@ def test_explore_goals_paper_new_maze_each_episode_same_maze_within():
 def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
     env = make("explore-goals-paper")
     assert env.action_size == 3 and env.task.max_steps == 1350
-    state = env.reset(jax.random.PRNGKey(2))
+    state = jax.jit(env.reset)(jax.random.PRNGKey(2))
     ms = state.pipeline_state
     world = ms.world._replace(items=ms.world.items._replace(pos=ms.pose.pos[None]))  # goal under the agent
     state = state.replace(pipeline_state=ms._replace(world=world))
