@@ -167,11 +167,12 @@ def test_losses_fall_on_a_fixed_batch_and_repeats_become_less_novel(name, frames
     # the target never moves, whatever the optimiser does with the gradients
     if "target" in params:
         chex.assert_trees_all_equal(params["target"], trained["target"])
-        grads = jax.grad(lambda p: novelty.loss_and_bonus(p, state, *seen)[0])(params)
+        grads = jax.jit(jax.grad(lambda p: novelty.loss_and_bonus(p, state, *seen)[0]))(params)
         assert all(float(jnp.max(jnp.abs(g))) == 0.0 for g in jax.tree.leaves(grads["target"]))
     # the repeated sequence's bonus falls below that of sequences the model never saw
-    _, (bonus_seen, _, _) = novelty.loss_and_bonus(trained, state, *seen)
-    _, (bonus_unseen, _, _) = novelty.loss_and_bonus(trained, state, *unseen)
+    loss_and_bonus = jax.jit(novelty.loss_and_bonus)
+    _, (bonus_seen, _, _) = loss_and_bonus(trained, state, *seen)
+    _, (bonus_unseen, _, _) = loss_and_bonus(trained, state, *unseen)
     assert float(jnp.mean(bonus_seen)) < 0.5 * float(jnp.mean(bonus_unseen)), (bonus_seen.mean(), bonus_unseen.mean())
 
 
@@ -185,13 +186,16 @@ def test_frames_of_an_earlier_episode_never_change_the_new_episodes_scores(frame
     novelty = _novelty(SIM(A, obs_len=4, act_len=2), obs_norm=False)
     params, state = _init(novelty, frames["seen"])
     sim = novelty.model
-    outs = []
-    for o in (obs, scrambled):
+
+    @jax.jit
+    def scores(o):
         tl, _ = build_timeline(state.memory, o, reset, actions, last_obs, last_reset)
         x = normalize_frames(tl.frames, None)
         error, scored, _, _ = sim.apply(params, tl, x)
         emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, sim.windows(tl))
-        outs.append((error, scored, logits))
+        return error, scored, logits
+
+    outs = [scores(o) for o in (obs, scrambled)]
     # targets e = start + 1 ... T are o_{start+1} ... o_T, rows start ... T-1
     new_rows = slice(start, T)
     np.testing.assert_allclose(outs[0][0][new_rows], outs[1][0][new_rows], rtol=1e-5, atol=1e-5)

@@ -82,7 +82,7 @@ def test_padded_windows_with_traced_lengths_give_the_model_built_for_them(sequen
             error, scored, loss, metrics = small.apply(q, tl_s, x_s)
             return loss, (error, scored, metrics)
 
-        g_small, (e_small, s_small, m_small) = jax.grad(small_loss, has_aux=True)(small_params)
+        g_small, (e_small, s_small, m_small) = jax.jit(jax.grad(small_loss, has_aux=True))(small_params)
         g_wide, (e_wide, s_wide, m_wide) = wide_grad(params, H, L)
         np.testing.assert_array_equal(s_wide, s_small)
         assert bool(s_small.any()) and not bool(s_small.all())  # episode starts mask some targets
