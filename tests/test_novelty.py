@@ -98,8 +98,7 @@ def _novelty(model, **kw):
 
 def _init(novelty, batch, key=0):
     obs, reset, actions, last_obs, last_reset = batch
-    params, state = novelty.init(jax.random.PRNGKey(key), obs[0])
-    return params, state
+    return jax.jit(novelty.init)(jax.random.PRNGKey(key), obs[0])
 
 
 @pytest.mark.parametrize("name", sorted(MODELS))
