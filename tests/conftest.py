@@ -1,11 +1,11 @@
 """One persistent compilation cache per test session, shared by the xdist workers.
 
-Many tests compile the same program (a module's fixture in both workers, a run and its resume,
-a trainer whose only change is a traced hyperparameter); with the cache on from the first
-compile each is built once per session. It lives in a temporary folder, removed at the end, so
-every session compiles from scratch as CI does and the user's own cache (~/.cache/simjax) is
-never written by the tests. JAX decides whether a process uses the cache at its first compile,
-so this runs before any test imports compile anything.
+Some tests compile a program another has compiled (a module's fixture in both workers, a run
+and its resume, a trainer whose only change is a traced hyperparameter); with the cache on from
+the first compile, the later one can load it. The folder is temporary and removed at the end,
+so every session compiles from scratch as CI does, and the tests never write the user's cache
+(~/.cache/simjax; a SIMJAX_CACHE_DIR set by the caller is used as given and kept). JAX decides
+whether a process uses a cache at its first compile, so this runs before any test compiles.
 """
 
 import os
