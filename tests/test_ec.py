@@ -216,12 +216,13 @@ def test_bonus_sign_and_scale_through_novelty(frames):
     reset = reset.at[3, 0].set(True)  # o_3 of env 0 starts an episode: transition 2 scores 0
     batch = (obs, reset, actions, last_obs, last_reset)
     novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
-    params, state = novelty.init(jax.random.PRNGKey(0), obs[0])
+    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), obs[0])
+    loss_and_bonus = jax.jit(novelty.loss_and_bonus)  # one program for both comparators
     for bias, want in (([-30.0, 30.0], 0.01 * (BETA - 1.0)), ([30.0, -30.0], 0.01 * BETA)):
         p = jax.tree.map(lambda x: x, params)
         p["r"]["params"]["out"]["kernel"] = jnp.zeros_like(p["r"]["params"]["out"]["kernel"])
         p["r"]["params"]["out"]["bias"] = jnp.asarray(bias)
-        _, (bonus, _, new_state) = novelty.loss_and_bonus(p, state, *batch)
+        _, (bonus, _, new_state) = loss_and_bonus(p, state, *batch)
         bonus = np.asarray(bonus)
         assert bonus[2, 0] == 0.0
         mask = np.ones_like(bonus, bool)
