@@ -100,11 +100,12 @@ def main(argv=None) -> int:
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), args.envs))
     key = jax.random.PRNGKey(1)
     progs = programs(env, args.envs, args.steps)
-    render = progs["render (one frame)"].lower(state, key).compile()
     if args.pause:
         os.kill(args.pause, signal.SIGSTOP)
     try:
         seconds = {name: time_call(fn, state, key, repeats=args.repeats)[1] for name, fn in progs.items()}
+        # the trace needs the compiled object, which time_call does not hand back: one more compile
+        render = progs["render (one frame)"].lower(state, key).compile()
         jax.block_until_ready(render(state, key))  # warm-up
         wall, per_thunk, _, op_names = trace_thunks(render, state, key)
     finally:
