@@ -30,9 +30,10 @@ from simjax.novelty.ec import (
 from simjax.novelty.ec_pretrain import Pretrainer
 from simjax.novelty.settings import PretrainPlan
 from simjax.plotting import read_members
+from simjax.runs import training
 from simjax.runs.folder import load_checkpoint, write_checkpoint
 from simjax.runs.grid import batch_inputs, check_sweep
-from simjax.runs.training import pretrain
+from simjax.runs.training import PRETRAIN_STATE, pretrain, write_pretrain_state
 
 A = 4
 TINY = dict(width=4, features=16, capacity=8)
@@ -334,27 +335,55 @@ def test_checkpoints_from_before_the_model_state_still_load(tmp_path):
 
 # ------------------------------------------------------------------------------- end to end
 
-def test_train_ec_end_to_end(tmp_path, capsys):
-    """``python -m simjax.train --algo ec`` on maze-tiny: pretraining, then rows from its end."""
-    out = tmp_path / "run"
-    code = cli.main(["--algo", "ec", "--env", "maze-tiny", "--num-envs", "2", "--rollout-len", "4",
-                     "--ec-width", "4", "--ec-embed", "8", "--ec-memory", "8", "--ec-pretrain-steps", "200",
-                     "--ec-pretrain-epochs", "3", "--total-steps", "216", "--log-every", "8",
-                     "--out", str(out), "--quiet"])
-    assert code == 0
-    with open(out / "metrics.csv") as f:
+def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_the_last_chunk(
+        tmp_path, capsys, monkeypatch):
+    """``python -m simjax.train --algo ec`` on maze-tiny: pretraining in two chunks, then rows
+    from its end; the same run stopped after the first chunk and resumed with ``--resume`` is
+    the whole run, bit for bit (its rows, pretrain.csv and checkpoint)."""
+    flags = ["--algo", "ec", "--env", "maze-tiny", "--num-envs", "2", "--rollout-len", "4", "--ec-width", "4",
+             "--ec-embed", "8", "--ec-memory", "8", "--ec-pretrain-steps", "2000", "--ec-pretrain-epochs", "3",
+             "--total-steps", "2016", "--log-every", "8", "--quiet"]
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    assert cli.main([*flags, "--out", str(whole)]) == 0
+    with open(whole / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
-    assert [int(r["env_steps"]) for r in rows] == [208, 216]  # the curve starts after the 200 steps
+    assert [int(r["env_steps"]) for r in rows] == [2008, 2016]  # the curve starts after the 2,000 steps
     assert all(np.isfinite(float(r["bonus_mean"])) for r in rows)
-    with open(out / "pretrain.csv") as f:
+    with open(whole / "pretrain.csv") as f:
         pre = list(csv.DictReader(f))
-    assert [int(r["env_steps"]) for r in pre] == [200] and 0.0 <= float(pre[0]["accuracy"]) <= 1.0
-    ckpt = load_checkpoint(out)
-    assert ckpt["env_steps"] == 216 and np.asarray(ckpt["runner"]["novelty"]["model"]["count"]).min() >= 1
-    trainer = make_trainer(TrainConfig(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8,
-                                       ec_memory=8, ec_pretrain_steps=200, ec_pretrain_epochs=3, total_steps=216,
-                                       log_every=8))
-    assert trainer.pretrain is not None and trainer.pretrain.plan.env_steps == 200
+    assert [int(r["env_steps"]) for r in pre] == [1000, 2000] and all(0 <= float(r["accuracy"]) <= 1 for r in pre)
+    ckpt = load_checkpoint(whole)
+    assert ckpt["env_steps"] == 2016 and np.asarray(ckpt["runner"]["novelty"]["model"]["count"]).min() >= 1
+    assert not (whole / PRETRAIN_STATE).exists()  # removed once the pretraining's checkpoint is written
+
+    saved = []
+
+    def record(*args):  # the chunks after which the pretraining's state is written
+        write_pretrain_state(*args)
+        saved.append(args[2])
+
+    def stop_after_first_chunk(*args):
+        record(*args)
+        raise KeyboardInterrupt  # as a Ctrl-C during the write: stops_deferred lets it in after it
+
+    monkeypatch.setattr(training, "write_pretrain_state", stop_after_first_chunk)
+    assert cli.main([*flags, "--out", str(parts)]) == 130
+    assert saved == [1] and not (parts / "metrics.csv").exists()
+    assert len(list(csv.reader(open(parts / "pretrain.csv")))) == 2  # header + the first chunk's row
+    assert load_checkpoint(parts)["env_steps"] == 0
+    monkeypatch.setattr(training, "write_pretrain_state", record)
+    assert cli.main(["--resume", str(parts), "--quiet"]) == 0
+    assert saved == [1, 2]  # the resumed run trained the second chunk only
+    assert not (parts / PRETRAIN_STATE).exists()
+    walls = [float(r["wall_s"]) for r in csv.DictReader(open(parts / "pretrain.csv"))]
+    assert walls[1] >= walls[0]  # the pretraining's clock goes on from the first process's
+    drop = ("steps_per_s", "wall_s")
+    for name in ("pretrain.csv", "metrics.csv"):
+        a, b = ([{k: v for k, v in r.items() if k not in drop} for r in csv.DictReader(open(d / name))]
+                for d in (whole, parts))
+        assert a == b, name
+    chex.assert_trees_all_equal(load_checkpoint(parts)["runner"], ckpt["runner"])
+    capsys.readouterr()
 
 
 def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus(tmp_path):
@@ -384,7 +413,7 @@ def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus
     trainer = make_trainer(config)
     fresh = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
     point1 = jax.tree.map(lambda x: x[2:], fresh)
-    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True).params["novelty"]
+    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True)[0].params["novelty"]
     saved = load_checkpoint(out)["runner"]["params"]["novelty"]
     chex.assert_trees_all_close(jax.tree.map(lambda x: x[2:], saved), jax.device_get(own), rtol=1e-6, atol=1e-7)
     first = jax.tree.leaves(saved)[0]

@@ -15,15 +15,19 @@ same as on one device.
 
 EC first pretrains its reachability network (``simjax.novelty.ec_pretrain``), call by call,
 its loss and accuracy written to pretrain.csv; the checkpoint after it is at
-``config.step_offset`` agent steps, where metrics.csv's rows begin. A run stopped during the
-pretraining starts it again. The pretraining is done once per seed, not once per member: it
-reads nothing a sweep varies (a random policy, EC's own Adam), and every point's member of a
-seed starts from the same key (``grid.batch_inputs``), so each member gets the network its
-seed's pretraining gives, the one it would have trained itself.
+``config.step_offset`` agent steps, where metrics.csv's rows begin. After each chunk the
+pretraining's state is saved beside it (pretrain_state.msgpack: the network, Adam, the random
+policy's environments and key; not the chunk's frames, which the next chunk replaces), so a run
+stopped during the pretraining goes on from its last chunk, bit for bit, with ``resume``; the
+file is removed once the checkpoint after the pretraining is written. The pretraining is done
+once per seed, not once per member: it reads nothing a sweep varies (a random policy, EC's own
+Adam), and every point's member of a seed starts from the same key (``grid.batch_inputs``), so
+each member gets the network its seed's pretraining gives, the one it would have trained itself.
 """
 
 from __future__ import annotations
 
+import csv
 import sys
 import time
 from pathlib import Path
@@ -90,16 +94,47 @@ def batch_sharding(batch: int, devices=None):
 
 
 PRETRAIN_COLUMNS = ("env_steps", "seed", "loss", "accuracy", "usable_pairs", "wall_s")
+PRETRAIN_STATE = "pretrain_state.msgpack"
+# what of a PretrainState goes on from one chunk to the next (``frames`` and ``starts`` are the
+# chunk just trained on; ``collect`` replaces both before they are read again)
+_CARRIED = ("params", "opt_state", "env_state", "key")
+
+
+def write_pretrain_state(out: Path, state, chunks: int, seeds: list[int]) -> None:
+    """pretrain_state.msgpack: the pretraining after ``chunks`` chunks (every seed)."""
+    from flax import serialization
+
+    carried = {k: serialization.to_state_dict(jax.device_get(getattr(state, k))) for k in _CARRIED}
+    record = {"state": carried, "chunks": chunks, "seeds": list(seeds)}
+    atomic_write(out / PRETRAIN_STATE, serialization.msgpack_serialize(record))
+
+
+def load_pretrain_state(out: Path, template, seeds: list[int]):
+    """(state, chunks done) saved by ``write_pretrain_state``, rebuilt into ``template``'s types."""
+    from flax import serialization
+
+    path = out / PRETRAIN_STATE
+    try:
+        record = serialization.msgpack_restore(path.read_bytes())
+        carried = {k: serialization.from_state_dict(getattr(template, k), record["state"][k]) for k in _CARRIED}
+    except (ValueError, TypeError, KeyError) as err:
+        raise ValueError(f"{path} is damaged ({err!r}); delete it to start the pretraining again") from None
+    if list(record["seeds"]) != list(seeds):
+        raise ValueError(f"{path} holds seeds {list(record['seeds'])}, this run trains {list(seeds)}")
+    return template._replace(**carried), int(record["chunks"])
 
 
 def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
-             devices=None, sharding=None):
+             devices=None, sharding=None, resume: bool = False):
     """EC's pretraining for every member of ``runner`` (leading axis: member, point-major, so
     member ``p * len(seeds) + s`` is seed ``seeds[s]`` of point ``p``), done once per seed on
     point 0's members (sharded over ``devices``) and given to every point's member of that seed;
     one compiled call at a time; each chunk's mean loss and accuracy (on each batch before its
-    update) become a row per seed of ``out``/pretrain.csv. Returns the runner (sharded by
-    ``sharding``) with the pretrained network and its episodic memories restarted with it."""
+    update) become a row per seed of ``out``/pretrain.csv, and its state pretrain_state.msgpack
+    (with ``resume``, the pretraining goes on from that file's chunk). Returns the runner
+    (sharded by ``sharding``) with the pretrained network and its episodic memories restarted
+    with it, and the pretraining's wall time in seconds, this process's and, resumed, the
+    earlier ones' (pretrain.csv's last ``wall_s``)."""
     plan, num_seeds = pretrainer.plan, len(seeds)
     num_members = len(runner.key)
     keys = np.asarray(jax.device_get(runner.key)).reshape(num_members // num_seeds, num_seeds, -1)
@@ -112,11 +147,20 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
     state = jax.jit(jax.vmap(lambda r: pretrainer.start(r)[0]), **out_shard)(first)
     collect = jax.jit(jax.vmap(pretrainer.collect), **shard).lower(state).compile()
     train = jax.jit(jax.vmap(pretrainer.train), **shard).lower(state).compile()
-    rows, started = [",".join(PRETRAIN_COLUMNS)], time.perf_counter()
+    rows, done, wall_before = [",".join(PRETRAIN_COLUMNS)], 0, 0.0
+    if resume and (out / PRETRAIN_STATE).exists():
+        state, done = load_pretrain_state(out, jax.device_get(state), seeds)
+        state = state if seed_sharding is None else jax.device_put(state, seed_sharding)
+        steps_done = done * plan.chunk_len * plan.num_envs
+        with open(out / "pretrain.csv", newline="") as f:
+            rows += [",".join(r) for r in list(csv.reader(f))[1:] if int(r[0]) <= steps_done]
+        wall_before = float(rows[-1].split(",")[-1]) if done else 0.0
+    started = time.perf_counter() - wall_before
     if not quiet:
+        at = f", resuming after chunk {done} of {plan.num_chunks}" if done else ""
         print(f"pretraining EC's reachability network: {plan.env_steps:,} random-policy steps per seed, "
-              f"{plan.updates:,} updates of {pretrainer.batch} pairs", file=sys.stderr, flush=True)
-    for c in range(plan.num_chunks):
+              f"{plan.updates:,} updates of {pretrainer.batch} pairs{at}", file=sys.stderr, flush=True)
+    for c in range(done, plan.num_chunks):
         state = jax.block_until_ready(collect(state))
         per_call = []
         for _ in range(plan.calls):
@@ -128,7 +172,9 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
         for i, seed in enumerate(seeds):
             rows.append(f"{steps},{seed},{metrics['loss'][i]:.6g},{metrics['accuracy'][i]:.6g},"
                         f"{metrics['usable_pairs'][i]:.6g},{wall:.1f}")
-        atomic_write(out / "pretrain.csv", ("\r\n".join(rows) + "\r\n").encode())
+        with stops_deferred():  # a Ctrl-C or SIGTERM waits until the chunk's rows and state are written
+            atomic_write(out / "pretrain.csv", ("\r\n".join(rows) + "\r\n").encode())
+            write_pretrain_state(out, state, c + 1, seeds)
         if not quiet:
             print(f"pretraining: {steps:,}/{plan.env_steps:,} steps per seed | loss {np.mean(metrics['loss']):.3f} | "
                   f"accuracy {np.mean(metrics['accuracy']):.3f} | {wall:.0f} s", file=sys.stderr, flush=True)
@@ -139,7 +185,8 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
         return jax.vmap(lambda r_, p_: pretrainer.finish(pretrainer.start(r_)[1], p_))(
             r, jax.tree.map(lambda x: x[index], p))
 
-    return jax.jit(finish, **({} if sharding is None else {"out_shardings": sharding}))(runner, params)
+    runner = jax.jit(finish, **({} if sharding is None else {"out_shardings": sharding}))(runner, params)
+    return runner, time.perf_counter() - started
 
 
 
@@ -201,11 +248,11 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     write_checkpoint(out, runner, done_steps, seeds)
     pretrain_s = 0.0
     if trainer.pretrain is not None and done_steps < config.step_offset:
-        pretrain_s = time.perf_counter()
-        runner = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, devices,
-                          sharding)
-        done_steps, pretrain_s = config.step_offset, time.perf_counter() - pretrain_s
+        runner, pretrain_s = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, devices,
+                                      sharding, resume)
+        done_steps = config.step_offset
         write_checkpoint(out, runner, done_steps, seeds)
+        (out / PRETRAIN_STATE).unlink(missing_ok=True)
     compiled = chunk.lower(runner).compile()
     start = time.perf_counter() - wall_before - pretrain_s  # wall_s counts the pretraining too
     log = MetricsLog(out, rows, tensorboard, labels=tuple(sweep))
