@@ -20,6 +20,7 @@ from pathlib import Path
 from simjax import flags
 from simjax.agents import TrainConfig, make_trainer
 from simjax.runs import Diverged, folder, run
+from simjax.runs.training import PRETRAIN_STATE, read_pretrain_state
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,6 +55,8 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
             config = folder.load_config(args.resume)
             if (args.resume / "checkpoint.msgpack").exists():
                 folder.load_checkpoint(args.resume)
+            if (args.resume / PRETRAIN_STATE).exists():
+                read_pretrain_state(args.resume, config.pretrain_plan)
         except (FileNotFoundError, ValueError, TypeError) as err:
             parser.error(str(err))
         return config, args.resume, args

@@ -10,7 +10,8 @@
                         atomically, after each row, so a stopped or killed run keeps it)
     pretrain.csv        EC only: its reachability network's pretraining, one row per seed per chunk
     pretrain_state.msgpack  EC only, while it pretrains: the pretraining after its last chunk
-                        (``resume`` goes on from it); removed when the pretraining ends
+                        (``resume`` goes on from it); removed once the checkpoint after the
+                        pretraining is written
     curve.png           success ratio and mean episode length against agent steps
     fork.json           where a fork (``simjax.runs.fork``) came from, and what it changed
     tensorboard/seedK/  with ``--tensorboard``: metrics.csv's values as TensorBoard scalars

@@ -100,27 +100,45 @@ PRETRAIN_STATE = "pretrain_state.msgpack"
 _CARRIED = ("params", "opt_state", "env_state", "key")
 
 
-def write_pretrain_state(out: Path, state, chunks: int, seeds: list[int]) -> None:
-    """pretrain_state.msgpack: the pretraining after ``chunks`` chunks (every seed)."""
+def write_pretrain_state(out: Path, state, chunks: int, seeds: list[int], plan) -> None:
+    """pretrain_state.msgpack: the pretraining of ``plan`` after ``chunks`` chunks (every seed)."""
+    import dataclasses
+
     from flax import serialization
 
     carried = {k: serialization.to_state_dict(jax.device_get(getattr(state, k))) for k in _CARRIED}
-    record = {"state": carried, "chunks": chunks, "seeds": list(seeds)}
+    record = {"state": carried, "chunks": chunks, "seeds": list(seeds), "plan": dataclasses.asdict(plan)}
     atomic_write(out / PRETRAIN_STATE, serialization.msgpack_serialize(record))
 
 
-def load_pretrain_state(out: Path, template, seeds: list[int]):
-    """(state, chunks done) saved by ``write_pretrain_state``, rebuilt into ``template``'s types."""
+def read_pretrain_state(out: Path, plan, seeds: list[int] | None = None) -> dict:
+    """The record ``write_pretrain_state`` wrote, checked against this run's ``plan`` (and
+    ``seeds``); a ValueError naming the file if it is damaged or another pretraining's."""
+    import dataclasses
+
     from flax import serialization
 
     path = out / PRETRAIN_STATE
+    again = "delete it to start the pretraining again"
     try:
         record = serialization.msgpack_restore(path.read_bytes())
-        carried = {k: serialization.from_state_dict(getattr(template, k), record["state"][k]) for k in _CARRIED}
+        chunks, saved_seeds, saved_plan = int(record["chunks"]), list(record["seeds"]), record["plan"]
+        record["state"]
     except (ValueError, TypeError, KeyError) as err:
-        raise ValueError(f"{path} is damaged ({err!r}); delete it to start the pretraining again") from None
-    if list(record["seeds"]) != list(seeds):
-        raise ValueError(f"{path} holds seeds {list(record['seeds'])}, this run trains {list(seeds)}")
+        raise ValueError(f"{path} is damaged ({err!r}); {again}") from None
+    if plan is None or saved_plan != dataclasses.asdict(plan) or not 0 < chunks <= plan.num_chunks:
+        raise ValueError(f"{path} is another pretraining's ({saved_plan}, after {chunks} chunks), not this run's; {again}")
+    if seeds is not None and saved_seeds != list(seeds):
+        raise ValueError(f"{path} holds seeds {saved_seeds}, this run trains {list(seeds)}; {again}")
+    return record
+
+
+def load_pretrain_state(out: Path, template, plan, seeds: list[int]):
+    """(state, chunks done) saved by ``write_pretrain_state``, rebuilt into ``template``'s types."""
+    from flax import serialization
+
+    record = read_pretrain_state(out, plan, seeds)
+    carried = {k: serialization.from_state_dict(getattr(template, k), record["state"][k]) for k in _CARRIED}
     return template._replace(**carried), int(record["chunks"])
 
 
@@ -133,8 +151,8 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
     update) become a row per seed of ``out``/pretrain.csv, and its state pretrain_state.msgpack
     (with ``resume``, the pretraining goes on from that file's chunk). Returns the runner
     (sharded by ``sharding``) with the pretrained network and its episodic memories restarted
-    with it, and the pretraining's wall time in seconds, this process's and, resumed, the
-    earlier ones' (pretrain.csv's last ``wall_s``)."""
+    with it, and the seconds of pretraining done before this process (resumed: pretrain.csv's
+    last kept ``wall_s``; else 0)."""
     plan, num_seeds = pretrainer.plan, len(seeds)
     num_members = len(runner.key)
     keys = np.asarray(jax.device_get(runner.key)).reshape(num_members // num_seeds, num_seeds, -1)
@@ -149,7 +167,7 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
     train = jax.jit(jax.vmap(pretrainer.train), **shard).lower(state).compile()
     rows, done, wall_before = [",".join(PRETRAIN_COLUMNS)], 0, 0.0
     if resume and (out / PRETRAIN_STATE).exists():
-        state, done = load_pretrain_state(out, jax.device_get(state), seeds)
+        state, done = load_pretrain_state(out, jax.device_get(state), plan, seeds)
         state = state if seed_sharding is None else jax.device_put(state, seed_sharding)
         steps_done = done * plan.chunk_len * plan.num_envs
         with open(out / "pretrain.csv", newline="") as f:
@@ -174,7 +192,7 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
                         f"{metrics['usable_pairs'][i]:.6g},{wall:.1f}")
         with stops_deferred():  # a Ctrl-C or SIGTERM waits until the chunk's rows and state are written
             atomic_write(out / "pretrain.csv", ("\r\n".join(rows) + "\r\n").encode())
-            write_pretrain_state(out, state, c + 1, seeds)
+            write_pretrain_state(out, state, c + 1, seeds, plan)
         if not quiet:
             print(f"pretraining: {steps:,}/{plan.env_steps:,} steps per seed | loss {np.mean(metrics['loss']):.3f} | "
                   f"accuracy {np.mean(metrics['accuracy']):.3f} | {wall:.0f} s", file=sys.stderr, flush=True)
@@ -186,7 +204,7 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
             r, jax.tree.map(lambda x: x[index], p))
 
     runner = jax.jit(finish, **({} if sharding is None else {"out_shardings": sharding}))(runner, params)
-    return runner, time.perf_counter() - started
+    return runner, wall_before
 
 
 
@@ -228,6 +246,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
             rows = rows_up_to(out / "metrics.csv", done_steps, columns)
         wall_before = float(rows[-1][-1]) if len(rows) > 1 else 0.0
     else:
+        (out / PRETRAIN_STATE).unlink(missing_ok=True)  # a fresh run never goes on from an earlier one's
         runner = jax.jit(jax.vmap(trainer.init), **shard)(*jax.device_put(batch_inputs(config, grid), sharding))
 
     def chunk_and_summarize(r):
@@ -248,10 +267,18 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     write_checkpoint(out, runner, done_steps, seeds)
     pretrain_s = 0.0
     if trainer.pretrain is not None and done_steps < config.step_offset:
-        runner, pretrain_s = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, devices,
-                                      sharding, resume)
-        done_steps = config.step_offset
-        write_checkpoint(out, runner, done_steps, seeds)
+        began = time.perf_counter()
+        runner, earlier = pretrain(trainer.pretrain, runner, out, seeds[: config.num_seeds], quiet, devices,
+                                   sharding, resume)
+        done_steps, pretrain_s = config.step_offset, time.perf_counter() - began + earlier
+        with stops_deferred():  # the checkpoint after the pretraining, then its state is not needed
+            write_checkpoint(out, runner, done_steps, seeds)
+            (out / PRETRAIN_STATE).unlink(missing_ok=True)
+    elif trainer.pretrain is not None and len(rows) == 1 and (out / "pretrain.csv").exists():
+        # resumed after the pretraining's checkpoint, before the first row: wall_s counts the pretraining
+        with open(out / "pretrain.csv", newline="") as f:
+            pretrain_s = float(list(csv.reader(f))[-1][-1])
+    if done_steps >= config.step_offset:  # a kill between the checkpoint and the removal leaves it
         (out / PRETRAIN_STATE).unlink(missing_ok=True)
     compiled = chunk.lower(runner).compile()
     start = time.perf_counter() - wall_before - pretrain_s  # wall_s counts the pretraining too
