@@ -170,8 +170,7 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
         state, done = load_pretrain_state(out, jax.device_get(state), plan, seeds)
         state = state if seed_sharding is None else jax.device_put(state, seed_sharding)
         steps_done = done * plan.chunk_len * plan.num_envs
-        with open(out / "pretrain.csv", newline="") as f:
-            rows += [",".join(r) for r in list(csv.reader(f))[1:] if int(r[0]) <= steps_done]
+        rows = [",".join(r) for r in rows_up_to(out / "pretrain.csv", steps_done, PRETRAIN_COLUMNS)]
         wall_before = float(rows[-1].split(",")[-1]) if done else 0.0
     started = time.perf_counter() - wall_before
     if not quiet:
