@@ -38,7 +38,7 @@ sweep: $(STAMP)
 		$(if $(L),--act-len $(L)) $(if $(H),--obs-len $(H)) $(if $(OUT),--out $(OUT)) $(ARGS)
 
 test: $(STAMP)
-	$(PY) -m pytest -n auto
+	$(PY) -m pytest -n auto --dist loadgroup
 
 # pyflakes, pycodestyle, import order, bugbear, pyupgrade: pyproject.toml's [tool.ruff]
 lint: $(STAMP)

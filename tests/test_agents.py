@@ -324,7 +324,7 @@ def test_a_damaged_checkpoint_is_a_one_line_error_naming_its_file(tmp_path, caps
 def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
     config = _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2)
     trainer = make_trainer(config)
-    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())  # traced: a program for any values
     after, metrics = jax.jit(trainer.run_chunk)(runner)
     chex.assert_tree_all_finite((after.params, metrics))
     before_p, after_p = runner.params, after.params
@@ -345,7 +345,7 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
         config = _tiny_config(algo=algo, bonus_scale=0.0, num_envs=2, rollout_len=4, total_steps=16, log_every=16,
                               obs_len=3, act_len=2)
         trainer = make_trainer(config)
-        runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+        runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())
         after, _ = jax.jit(trainer.run_chunk)(runner)
         policies.append((runner.params["policy"], after.params["policy"]))
     (before, a2c), (rnd_before, rnd) = policies
@@ -375,32 +375,34 @@ def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]]
 
 
+@pytest.mark.xdist_group("rnd_tiny_run")  # with test_runs.py's runs of the same program
 def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, capsys):
     from simjax import fork
 
-    config = _tiny_config(algo="rnd", num_envs=2, rollout_len=4, total_steps=16, log_every=8)
+    # test_runs.py's test_restore_reads_a_run_back's settings: the source's programs are in the session's cache
+    config = TrainConfig(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, total_steps=40, log_every=20, num_seeds=2)
     runs.run(config, tmp_path / "src", quiet=True)
     before = (tmp_path / "src" / "checkpoint.msgpack").read_bytes()
-    for bad, message in ((["--num-envs", "4"], "cannot change --num-envs"), (["--total-steps", "16"], "larger"),
+    for bad, message in ((["--num-envs", "8"], "cannot change --num-envs"), (["--total-steps", "40"], "larger"),
                          ([], "at least one"), (["--bonus-scale", "-1"], "--bonus-scale"),
                          (["--out", "x"], "unrecognized arguments: --out")):
         with pytest.raises(SystemExit):
             fork.main([str(tmp_path / "src"), str(tmp_path / "bad"), *bad])
         assert message in capsys.readouterr().err and not (tmp_path / "bad").exists()
     assert fork.main([str(tmp_path / "src"), str(tmp_path / "dst"), "--bonus-episodic", "false",
-                      "--bonus-scale", "0.5", "--total-steps", "32"]) == 0
+                      "--bonus-scale", "0.5", "--total-steps", "80"]) == 0
     assert (tmp_path / "src" / "checkpoint.msgpack").read_bytes() == before  # the source is never written
     record = json.loads((tmp_path / "dst" / "fork.json").read_text())
-    assert record["env_steps"] == 16 and record["changed"]["bonus_scale"] == [0.01, 0.5]
+    assert record["env_steps"] == 40 and record["changed"]["bonus_scale"] == [0.01, 0.5]
     # only the bonus's value head and its Adam moments are new
     assert record["new_leaves"] and all("IntrinsicValue" in p for p in record["new_leaves"])
     new = runs.load_config(tmp_path / "dst")
-    assert (new.bonus_episodic, new.bonus_scale, new.total_steps) == (False, 0.5, 32)
+    assert (new.bonus_episodic, new.bonus_scale, new.total_steps) == (False, 0.5, 80)
     src = runs.load_checkpoint(tmp_path / "src")["runner"]
     dst = runs.load_checkpoint(tmp_path / "dst")["runner"]
     np.testing.assert_array_equal(dst["params"]["policy"]["params"]["Dense_1"]["kernel"],
                                   src["params"]["policy"]["params"]["Dense_1"]["kernel"])
     chex.assert_trees_all_equal(dst["novelty"], src["novelty"])
-    runs.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 16
+    runs.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 40
     rows = list(csv.DictReader(open(tmp_path / "dst" / "metrics.csv")))
-    assert [int(r["env_steps"]) for r in rows] == [8, 16, 24, 32]
+    assert sorted((int(r["env_steps"]), int(r["seed"])) for r in rows) == [(s, i) for s in (20, 40, 60, 80) for i in (0, 1)]

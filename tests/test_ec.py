@@ -46,6 +46,15 @@ def frames():
     return random_rollout(make("maze-tiny"), jax.random.PRNGKey(0), T=6, N=2, num_actions=A)
 
 
+@pytest.fixture(scope="module")
+def tiny_ec(frames):
+    """``Novelty(EC(A, **TINY), 0.01)``, its initial params and state, and its jitted
+    ``loss_and_bonus``: one compiled init and loss for the tests that read them."""
+    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
+    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), frames[0][0])
+    return novelty, params, state, jax.jit(novelty.loss_and_bonus)
+
+
 # ----------------------------------------------------------------------------- the network
 
 def test_paper_sized_network_shapes_without_compiling():
@@ -72,7 +81,7 @@ def test_split_first_layer_is_the_fc_of_the_concatenation():
     net = ReachabilityNet(width=4, features=16, hidden=8)
     k1, k2, k3 = jax.random.split(jax.random.PRNGKey(0), 3)
     x1, x2 = jax.random.uniform(k1, (5, 42, 42, 3)), jax.random.uniform(k2, (5, 42, 42, 3))
-    params = net.init(k3, x1[:1], x2[:1])
+    params = jax.jit(net.init)(k3, x1[:1], x2[:1])  # one program, not an eager op per initialiser
     p = params["params"]
 
     @jax.jit
@@ -87,15 +96,15 @@ def test_split_first_layer_is_the_fc_of_the_concatenation():
     chex.assert_trees_all_close(logits, h @ p["out"]["kernel"] + p["out"]["bias"], atol=1e-5)
 
 
-def test_ec_shapes_and_state_through_novelty(frames):
+@pytest.mark.xdist_group("tiny_ec")  # one worker compiles the fixture once
+def test_ec_shapes_and_state_through_novelty(frames, tiny_ec):
     obs, reset, actions, last_obs, last_reset = frames
     T, N = actions.shape
-    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
-    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), obs[0])
+    novelty, params, state, loss_and_bonus = tiny_ec
     chex.assert_shape([state.model.slots], (N, 8, 16))
     np.testing.assert_array_equal(state.model.count, np.ones(N))  # the first frame is remembered
     grads, (bonus, metrics, new_state) = jax.jit(jax.grad(novelty.loss_and_bonus, has_aux=True))(params, state, *frames)
-    loss, _ = jax.jit(novelty.loss_and_bonus)(params, state, *frames)
+    loss, _ = loss_and_bonus(params, state, *frames)
     chex.assert_shape(bonus, (T, N))
     chex.assert_tree_all_finite((loss, bonus, metrics, new_state))
     chex.assert_trees_all_equal_shapes_and_dtypes(state, new_state)
@@ -211,15 +220,14 @@ def test_a_full_memory_replaces_one_random_slot():
     assert len({0.0, 1.0, 2.0} & set(slots)) < 3  # ... on a slot that was full
 
 
-def test_bonus_sign_and_scale_through_novelty(frames):
+@pytest.mark.xdist_group("tiny_ec")  # one worker compiles the fixture once
+def test_bonus_sign_and_scale_through_novelty(frames, tiny_ec):
     """A comparator that calls every pair reachable gives beta * (0.5 - 1) < 0; one that calls
     none reachable, beta * 0.5 > 0; episode starts get 0."""
     obs, reset, actions, last_obs, last_reset = frames
     reset = reset.at[3, 0].set(True)  # o_3 of env 0 starts an episode: transition 2 scores 0
     batch = (obs, reset, actions, last_obs, last_reset)
-    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
-    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), obs[0])
-    loss_and_bonus = jax.jit(novelty.loss_and_bonus)  # one program for both comparators
+    _, params, state, loss_and_bonus = tiny_ec  # one program for both comparators
     for bias, want in (([-30.0, 30.0], 0.01 * (BETA - 1.0)), ([30.0, -30.0], 0.01 * BETA)):
         p = jax.tree.map(lambda x: x, params)
         p["r"]["params"]["out"]["kernel"] = jnp.zeros_like(p["r"]["params"]["out"]["kernel"])
@@ -234,18 +242,18 @@ def test_bonus_sign_and_scale_through_novelty(frames):
             assert int(new_state.model.count[1]) == 1 + actions.shape[0]
 
 
-def test_alpha_is_the_hyper_bonus_scale(frames):
+@pytest.mark.xdist_group("tiny_ec")  # one worker compiles the fixture once
+def test_alpha_is_the_hyper_bonus_scale(frames, tiny_ec):
     """A sweep's beta (EC's alpha) reaches EC's bonus: ``hyper.bonus_scale`` replaces the
     Novelty's own, as a traced value (one compiled program for every alpha)."""
-    novelty = Novelty(model=EC(A, **TINY), bonus_scale=0.01)
-    params, state = jax.jit(novelty.init)(jax.random.PRNGKey(0), frames[0][0])
+    novelty, params, state, loss_and_bonus = tiny_ec
     hyper = NoveltySettings(algo="ec", bonus_scale=0.01).hyper()
 
     @jax.jit
     def bonus(alpha):
         return novelty.loss_and_bonus(params, state, *frames, hyper._replace(bonus_scale=alpha))[1][0]
 
-    own = jax.jit(lambda: novelty.loss_and_bonus(params, state, *frames)[1][0])()
+    own = loss_and_bonus(params, state, *frames)[1][0]
     assert float(jnp.abs(own).max()) > 0.0
     np.testing.assert_allclose(bonus(jnp.float32(0.01)), own, rtol=1e-6)
     np.testing.assert_allclose(bonus(jnp.float32(0.03)), 3.0 * np.asarray(own), rtol=1e-5, atol=1e-9)
@@ -279,17 +287,20 @@ def test_pretraining_separates_near_from_far_pairs_on_a_small_maze():
     model = EC(A, width=8, features=32, capacity=8)
     plan = PretrainPlan(chunk_len=200, num_chunks=2, calls=5, updates_per_call=40, num_envs=8)
     pre = Pretrainer(env, model, plan, batch=32, learning_rate=1e-3)
-    params = {"r": model.net().init(jax.random.PRNGKey(1), jnp.zeros((1, 42, 42, 3)), jnp.zeros((1, 42, 42, 3)))}
+    x = jnp.zeros((1, 42, 42, 3))
+    params = jax.jit(lambda k: {"r": model.net().init(k, x, x)})(jax.random.PRNGKey(1))
     trained, metrics = jax.jit(pre.run)(jax.random.PRNGKey(2), params)
     print("pretraining accuracy per chunk:", np.asarray(metrics["accuracy"]), "usable:", np.asarray(metrics["usable_pairs"]))
 
-    # held-out pairs from a fresh random-policy chunk
-    state = pre.collect(pre.init(jax.random.PRNGKey(7), params))
-    start, end = pre.bounds(state.starts)
-    evaluate = jax.jit(lambda p, k: pre.loss(p, *pre.sample(k, state.frames, start, end))[1])
-    keys = jax.random.split(jax.random.PRNGKey(8), 8)
-    before = np.mean([float(evaluate(params, k)) for k in keys])
-    after = np.mean([float(evaluate(trained, k)) for k in keys])
+    @jax.jit
+    def held_out(both):
+        """Accuracy of each of ``both`` on 8 batches of pairs from a fresh random-policy chunk."""
+        state = pre.collect(pre.init(jax.random.PRNGKey(7), params))
+        start, end = pre.bounds(state.starts)
+        batches = jax.vmap(lambda k: pre.sample(k, state.frames, start, end))(jax.random.split(jax.random.PRNGKey(8), 8))
+        return [jnp.mean(jax.vmap(lambda b, p=p: pre.loss(p, *b)[1])(batches)) for p in both]
+
+    before, after = (float(a) for a in held_out([params, trained]))
     print(f"held-out accuracy: untrained {before:.3f}, pretrained {after:.3f}")
     # measured: untrained 0.45, pretrained 0.71 (train batches of the last chunk: 0.80)
     assert after > 0.65 and after > before + 0.15

@@ -25,6 +25,7 @@ def _tiny(**kw):
     return TrainConfig(**{**base, **kw})
 
 
+@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
 def test_restore_reads_a_run_back(tmp_path):
     config = _tiny(algo="rnd", num_seeds=2)
     runs.run(config, tmp_path / "run", quiet=True)
@@ -61,6 +62,7 @@ def read_events(folder) -> dict:
     return scalars
 
 
+@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
 def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
     pytest.importorskip("tensorboardX")
     out = tmp_path / "run"
@@ -171,15 +173,18 @@ def test_a_stop_during_an_atomic_write_leaves_the_new_file_and_no_temporary(tmp_
     assert target.read_bytes() == b"new" and [p.name for p in tmp_path.iterdir()] == ["checkpoint.msgpack"]
 
 
+@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
 def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path):
-    # what `timeout` or a job scheduler sends
+    # what `timeout` or a job scheduler sends; test_restore_reads_a_run_back's settings, whose compiled
+    # programs the command finds in the session's cache
     out = tmp_path / "run"
     proc = subprocess.Popen([sys.executable, "-m", "simjax.train", "--env", "maze-tiny", "--num-envs", "4",
-                             "--rollout-len", "5", "--total-steps", "100000000", "--log-every", "20", "--out", str(out),
-                             "--quiet"], start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                             "--rollout-len", "5", "--total-steps", "100000000", "--log-every", "20", "--num-seeds", "2",
+                             "--algo", "rnd", "--out", str(out), "--quiet"],
+                            start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.time() + 300
-        while not ((out / "metrics.csv").exists() and len((out / "metrics.csv").read_text().splitlines()) >= 3):
+        while not ((out / "metrics.csv").exists() and len((out / "metrics.csv").read_text().splitlines()) >= 5):  # 2 rows a seed
             assert proc.poll() is None and time.time() < deadline, proc.stderr.read().decode()
             time.sleep(0.2)
         proc.send_signal(signal.SIGTERM)

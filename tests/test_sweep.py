@@ -233,9 +233,9 @@ def test_sharded_over_two_devices_gives_the_same_metrics(tmp_path):
         from simjax import runs
         from simjax.runs.grid import check_sweep
         assert len(jax.local_devices()) == 2
-        sweep = {{"act_len": [1, 2]}}
-        config, _ = check_sweep(dict(env="maze-tiny", algo="sim", num_envs=2, rollout_len=4, total_steps=16,
-                                     log_every=8, obs_len=3, num_seeds=1), sweep)
+        sweep = {{"entropy_coef": [0.01, 0.05]}}  # A2C: the smallest training program to compile
+        config, _ = check_sweep(dict(env="maze-tiny", algo="a2c", num_envs=2, rollout_len=4, total_steps=16,
+                                     log_every=8, num_seeds=1), sweep)
         for name, devices in (("two", None), ("one", jax.local_devices()[:1])):
             runs.run(config, {str(tmp_path)!r} + "/" + name, quiet=True, sweep=sweep, devices=devices)
     """)
