@@ -2,6 +2,16 @@
 
 import jax
 
+# One small RND run's settings, for the tests that train through the run folder (restore, TensorBoard,
+# SIGTERM, fork): marked xdist_group("rnd_tiny_run"), they share a worker, so the first compiles the
+# programs and the others load them from the session's cache (a fork's new program aside)
+RND_TINY = dict(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, log_every=20, num_seeds=2)
+
+
+def flags(settings: dict) -> list[str]:
+    """The ``simjax.train`` flags that give the TrainConfig ``settings``."""
+    return [text for name, value in settings.items() for text in (f"--{name.replace('_', '-')}", str(value))]
+
 
 def walk(env, start, actions):
     """Step one env from ``start`` (a State, or a PRNG key to reset with) through ``actions``;

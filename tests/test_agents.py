@@ -10,6 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from flax import serialization
+from helpers import RND_TINY
 
 from simjax import runs
 from simjax import train as cli
@@ -375,12 +376,11 @@ def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]]
 
 
-@pytest.mark.xdist_group("rnd_tiny_run")  # with test_runs.py's runs of the same program
+@pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
 def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, capsys):
     from simjax import fork
 
-    # test_runs.py's test_restore_reads_a_run_back's settings: the source's programs are in the session's cache
-    config = TrainConfig(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, total_steps=40, log_every=20, num_seeds=2)
+    config = TrainConfig(**RND_TINY, total_steps=40)
     runs.run(config, tmp_path / "src", quiet=True)
     before = (tmp_path / "src" / "checkpoint.msgpack").read_bytes()
     for bad, message in ((["--num-envs", "8"], "cannot change --num-envs"), (["--total-steps", "40"], "larger"),

@@ -14,20 +14,16 @@ import chex
 import jax
 import numpy as np
 import pytest
+from helpers import RND_TINY, flags
 
 from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig
 
 
-def _tiny(**kw):
-    base = dict(env="maze-tiny", num_envs=4, rollout_len=5, total_steps=40, log_every=20)
-    return TrainConfig(**{**base, **kw})
-
-
-@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
+@pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
 def test_restore_reads_a_run_back(tmp_path):
-    config = _tiny(algo="rnd", num_seeds=2)
+    config = TrainConfig(**RND_TINY, total_steps=40)
     runs.run(config, tmp_path / "run", quiet=True)
     restored = runs.restore(tmp_path / "run")
     assert restored.config == config and restored.env_steps == 40 and restored.seeds == [0, 1]
@@ -62,14 +58,11 @@ def read_events(folder) -> dict:
     return scalars
 
 
-@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
+@pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
 def test_tensorboard_holds_the_values_of_metrics_csv(tmp_path):
     pytest.importorskip("tensorboardX")
     out = tmp_path / "run"
-    # test_restore_reads_a_run_back's settings, so that its compiled programs are reused
-    assert cli.main(["--env", "maze-tiny", "--num-envs", "4", "--rollout-len", "5", "--total-steps", "60",
-                     "--log-every", "20", "--num-seeds", "2", "--algo", "rnd",
-                     "--out", str(out), "--quiet", "--tensorboard"]) == 0
+    assert cli.main([*flags(RND_TINY), "--total-steps", "60", "--out", str(out), "--quiet", "--tensorboard"]) == 0
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert len(rows) == 6
     checked = 0
@@ -173,14 +166,12 @@ def test_a_stop_during_an_atomic_write_leaves_the_new_file_and_no_temporary(tmp_
     assert target.read_bytes() == b"new" and [p.name for p in tmp_path.iterdir()] == ["checkpoint.msgpack"]
 
 
-@pytest.mark.xdist_group("rnd_tiny_run")  # one worker: the first compiles, the rest load it
+@pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
 def test_sigterm_stops_a_run_as_ctrl_c_does_keeping_rows_and_checkpoint(tmp_path):
-    # what `timeout` or a job scheduler sends; test_restore_reads_a_run_back's settings, whose compiled
-    # programs the command finds in the session's cache
+    # what `timeout` or a job scheduler sends; the command loads RND_TINY's programs from the session's cache
     out = tmp_path / "run"
-    proc = subprocess.Popen([sys.executable, "-m", "simjax.train", "--env", "maze-tiny", "--num-envs", "4",
-                             "--rollout-len", "5", "--total-steps", "100000000", "--log-every", "20", "--num-seeds", "2",
-                             "--algo", "rnd", "--out", str(out), "--quiet"],
+    proc = subprocess.Popen([sys.executable, "-m", "simjax.train", *flags(RND_TINY), "--total-steps", "100000000",
+                             "--out", str(out), "--quiet"],
                             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.time() + 300
