@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from simjax.networks import ActorCritic, Encoder
-from simjax.networks.layers import PatchConv, conv_stack, from_chwn, orthogonal, to_chwn
+from simjax.networks.layers import PatchConv, conv_stack, drawn_as_matrix, from_chwn, orthogonal, to_chwn
 
 
 @pytest.mark.parametrize("layout", ["NHWC", "CHWN"])
@@ -23,9 +23,21 @@ def test_patch_conv_matches_flax_conv(kernel, stride, padding, size, layout):
     params = ref.init(jax.random.PRNGKey(1), x)
     mine = PatchConv(7, kernel, stride, padding, layout=layout)
     mine_x = to_chwn(x) if layout == "CHWN" else x
-    chex.assert_trees_all_equal_shapes(mine.init(jax.random.PRNGKey(1), mine_x), params)
+    chex.assert_trees_all_equal(mine.init(jax.random.PRNGKey(1), mine_x), params)  # flax's values too
     out = mine.apply(params, mine_x)
     np.testing.assert_allclose(from_chwn(out) if layout == "CHWN" else out, ref.apply(params, x), atol=1e-5, rtol=1e-5)
+
+
+def test_conv_kernels_drawn_as_a_matrix_are_the_initialisers_own_values():
+    # PatchConv draws its kernel as the (k*k*c_in, features) matrix (XLA:CPU compiles that draw
+    # faster): the same values for every initialiser the networks give it
+    key = jax.random.PRNGKey(4)
+    for init in (nn.initializers.lecun_normal(), nn.initializers.he_normal(), orthogonal(2**0.5),
+                 nn.initializers.zeros_init()):
+        for shape in ((3, 3, 2, 4), (1, 1, 4, 8)):
+            np.testing.assert_array_equal(drawn_as_matrix(init)(key, shape), init(key, shape))
+    glorot = nn.initializers.glorot_normal()  # fan-out is the matrix's: the one kind that differs
+    assert not np.array_equal(drawn_as_matrix(glorot)(key, (3, 3, 2, 4)), glorot(key, (3, 3, 2, 4)))
 
 
 def test_conv_stack_names_its_layers_and_matches_flax_convs_written_out():
@@ -42,7 +54,7 @@ def test_conv_stack_names_its_layers_and_matches_flax_convs_written_out():
 
     x = jax.random.normal(jax.random.PRNGKey(0), (3, 2, 12, 12, 2))
     params = Written().init(jax.random.PRNGKey(1), x)
-    chex.assert_trees_all_equal_shapes(Stack().init(jax.random.PRNGKey(1), x), params)
+    chex.assert_trees_all_equal(Stack().init(jax.random.PRNGKey(1), x), params)
     out = Stack().apply(params, x)
     chex.assert_shape(out, (3, 2, 3, 3, 4))
     np.testing.assert_allclose(out, Written().apply(params, x), atol=1e-5, rtol=1e-5)

@@ -21,6 +21,7 @@ flax's, bit for bit (tested).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import flax.linen as nn
@@ -44,6 +45,20 @@ def orthogonal(scale: float = 1.0) -> nn.initializers.Initializer:
         return draw(key)
 
     return init
+
+
+def drawn_as_matrix(init: nn.initializers.Initializer) -> nn.initializers.Initializer:
+    """``init`` for a (k, k, c_in, features) kernel, drawn as its (k*k*c_in, features) matrix and
+    reshaped. The values are those of ``init`` on the kernel's own shape wherever ``init`` depends
+    on the shape only through fan-in and the row-major order: the lecun and he initialisers,
+    ``orthogonal`` (which draws that matrix itself) and zeros (checked in the tests); an
+    initialiser that uses fan-out (glorot) sees fan-out = features. XLA:CPU compiles a random draw
+    of rank 2 several times faster than one of rank 4 (0.2 s against 1 s for a 3x3x4x4 kernel);
+    EC's 21 conv kernels made its init's compile about 80% draws."""
+    def draw(key, shape, dtype=jnp.float32):
+        return init(key, (math.prod(shape[:-1]), shape[-1]), dtype).reshape(shape)
+
+    return draw
 
 
 def _same_or_valid(h: int, w: int, kernel: int, stride: int, padding: str):
@@ -118,7 +133,7 @@ class PatchConv(nn.Module):
         if self.layout not in ("NHWC", "CHWN"):
             raise ValueError(f"layout must be 'NHWC' or 'CHWN', got {self.layout!r}")
         c_in = x.shape[0] if self.layout == "CHWN" else x.shape[-1]
-        kernel = self.param("kernel", self.kernel_init, (self.kernel, self.kernel, c_in, self.features))
+        kernel = self.param("kernel", drawn_as_matrix(self.kernel_init), (self.kernel, self.kernel, c_in, self.features))
         bias = self.param("bias", self.bias_init, (self.features,))
         weights = kernel.reshape(-1, self.features)  # rows ordered (ki, kj, c)
         if self.layout == "NHWC":
