@@ -1,5 +1,7 @@
 """Helpers shared by the test files (pytest puts this folder on sys.path)."""
 
+import math
+
 import jax
 
 # One small RND run's settings, for the tests that train through the run folder (restore, TensorBoard,
@@ -11,6 +13,13 @@ RND_TINY = dict(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, log_ever
 def flags(settings: dict) -> list[str]:
     """The ``simjax.train`` flags that give the TrainConfig ``settings``."""
     return [text for name, value in settings.items() for text in (f"--{name.replace('_', '-')}", str(value))]
+
+
+def flat_draw(sample, key, shape, *args, **kwargs):
+    """``sample(key, shape, ...)`` (a jax.random sampler) drawn as one rank-1 array and reshaped:
+    the same values, and XLA:CPU compiles a rank-1 draw several times faster than a rank-4 or -5
+    one (about 0.2 s against 1-2 s for a 2x3x42x42x5 normal)."""
+    return sample(key, (math.prod(shape),), *args, **kwargs).reshape(shape)
 
 
 def walk(env, start, actions):

@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import random_rollout
+from helpers import flat_draw, random_rollout
 
 from simjax import runs
 from simjax import train as cli
@@ -80,7 +80,7 @@ def test_paper_sized_network_shapes_without_compiling():
 def test_split_first_layer_is_the_fc_of_the_concatenation():
     net = ReachabilityNet(width=4, features=16, hidden=8)
     k1, k2, k3 = jax.random.split(jax.random.PRNGKey(0), 3)
-    x1, x2 = jax.random.uniform(k1, (5, 42, 42, 3)), jax.random.uniform(k2, (5, 42, 42, 3))
+    x1, x2 = (flat_draw(jax.random.uniform, k, (5, 42, 42, 3)) for k in (k1, k2))
     params = jax.jit(net.init)(k3, x1[:1], x2[:1])  # one program, not an eager op per initialiser
     p = params["params"]
 
@@ -123,7 +123,7 @@ def test_eco_trains_the_network_on_pairs_of_recent_frames(frames):
     chex.assert_shape(state.memory.frames, (24,) + obs.shape[1:])
     # a memory of 24 real frames and a rollout of 16, one episode: far pairs exist
     T, N = 16, obs.shape[1]
-    noise = jax.random.randint(jax.random.PRNGKey(1), (24 + T + 1, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    noise = flat_draw(jax.random.randint, jax.random.PRNGKey(1), (24 + T + 1, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
     state = state._replace(memory=state.memory._replace(frames=noise[:24], reset=jnp.zeros((24, N), bool),
                                                         valid=jnp.ones((24, N), bool)))
     batch = (noise[24:-1], jnp.zeros((T, N), bool), jnp.zeros((T, N), jnp.int32), noise[-1], jnp.zeros((N,), bool))

@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import flat_draw
 
 from simjax.networks import ActorCritic, Encoder
 from simjax.networks.layers import PatchConv, conv_stack, drawn_as_matrix, from_chwn, orthogonal, to_chwn
@@ -18,7 +19,7 @@ from simjax.networks.layers import PatchConv, conv_stack, drawn_as_matrix, from_
 @pytest.mark.parametrize("kernel,stride,padding,size", [(3, 2, "SAME", 42), (3, 2, "SAME", 21), (8, 4, "VALID", 42),
                                                         (4, 2, "VALID", 10), (3, 1, "VALID", 4), (3, 1, "SAME", 7)])
 def test_patch_conv_matches_flax_conv(kernel, stride, padding, size, layout):
-    x = jax.random.normal(jax.random.PRNGKey(0), (2, 3, size, size, 5))
+    x = flat_draw(jax.random.normal, jax.random.PRNGKey(0), (2, 3, size, size, 5))
     ref = nn.Conv(7, (kernel, kernel), strides=(stride, stride), padding=padding)
     params = ref.init(jax.random.PRNGKey(1), x)
     mine = PatchConv(7, kernel, stride, padding, layout=layout)
@@ -52,7 +53,7 @@ def test_conv_stack_names_its_layers_and_matches_flax_convs_written_out():
             x = nn.elu(nn.Conv(6, (4, 4), strides=(2, 2), padding="VALID", name="PatchConv_0")(x))
             return nn.elu(nn.Conv(4, (3, 3), padding="VALID", name="PatchConv_1")(x))
 
-    x = jax.random.normal(jax.random.PRNGKey(0), (3, 2, 12, 12, 2))
+    x = flat_draw(jax.random.normal, jax.random.PRNGKey(0), (3, 2, 12, 12, 2))
     params = Written().init(jax.random.PRNGKey(1), x)
     chex.assert_trees_all_equal(Stack().init(jax.random.PRNGKey(1), x), params)
     out = Stack().apply(params, x)
@@ -62,7 +63,7 @@ def test_conv_stack_names_its_layers_and_matches_flax_convs_written_out():
 
 def test_encoder_and_actor_critic_shapes():
     T, N, A = 5, 3, 4
-    obs = jax.random.randint(jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    obs = flat_draw(jax.random.randint, jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
     reset = jnp.zeros((T, N), bool)
     enc = Encoder()
     emb = enc.apply(enc.init(jax.random.PRNGKey(0), obs), obs)
@@ -83,7 +84,7 @@ def test_encoder_and_actor_critic_shapes():
 
 def test_lstm_carry_is_reset_where_an_episode_starts():
     T, N = 6, 2
-    obs = jax.random.randint(jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    obs = flat_draw(jax.random.randint, jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
     net = ActorCritic(num_actions=4)
     params = net.init(jax.random.PRNGKey(0), net.initial_carry(N), obs, jnp.zeros((T, N), bool))
     noisy = jax.tree.map(lambda c: jax.random.normal(jax.random.PRNGKey(2), c.shape), net.initial_carry(N))
