@@ -31,7 +31,9 @@ Measures, each as the median of several calls of one compiled program (compile t
   ViZDoom's own Gymnasium env ``VizdoomMyWayHome-v1`` at the same 4 tics per agent step, one env
   and one per core (``AsyncVectorEnv``), random actions, in the same run.
 ``--only devices`` compares 2 SIM seeds on one CPU device with the same sharded over two
-(``--xla_force_host_platform_device_count=2``), each in a fresh process.
+(``--xla_force_host_platform_device_count=2``), each in a fresh process. ``--only compile``
+times the compiles of the two programs a run starts with, the seed-vmapped ``init`` and the
+chunk, for each method at 16 envs and 3 seeds.
 """
 
 from __future__ import annotations
@@ -324,6 +326,32 @@ def bench_loop(task: str, algo: str, seeds: int, num_envs: int = 16, updates: in
     return {"algo": algo, "seeds": seeds, "envs": num_envs, "steps_per_s": steps / med, "compile_s": compile_s}
 
 
+def bench_compile(task: str, algo: str, seeds: int = 3, num_envs: int = 16) -> dict:
+    """Compile seconds of the two programs ``python -m simjax.train`` compiles for a run: the
+    seed-vmapped trainer ``init`` and the chunk (EC's policy loop; its pretraining is not here)."""
+    from simjax.runs.grid import batch_inputs, grid_of
+
+    extra = {"ec_pretrain_steps": 0} if algo == "ec" else {}
+    config = TrainConfig(env=task, algo=algo, num_envs=num_envs, num_seeds=seeds,
+                         total_steps=num_envs * 20 * 8, log_every=num_envs * 20 * 8, **extra)
+    trainer = make_trainer(config)
+    inputs = batch_inputs(config, grid_of({}))
+    t0 = time.perf_counter()
+    init = jax.jit(jax.vmap(trainer.init)).lower(*inputs).compile()
+    init_s = time.perf_counter() - t0
+    chunk, _ = _sweep_chunk(config, {})
+    t0 = time.perf_counter()
+    jax.jit(chunk).lower(init(*inputs)).compile()
+    return {"algo": algo, "seeds": seeds, "envs": num_envs, "init_s": init_s, "chunk_s": time.perf_counter() - t0}
+
+
+def compile_lines(results: list[dict]) -> list[str]:
+    lines = ["Compile seconds of what `make train` compiles for a run (16 envs per seed, 3 seeds, one "
+             "process, no persistent cache; EC without its pretraining's programs):", "",
+             "| method | init s | chunk s |", "|---|---:|---:|"]
+    return lines + [f"| {r['algo'].upper()} | {r['init_s']:.1f} | {r['chunk_s']:.1f} |" for r in results]
+
+
 def devices_probe(task: str, seeds: int = 2, num_envs: int = 16, updates: int = 4) -> dict:
     """In this process: SIM's loop for ``seeds`` seeds, sharded over every local device."""
     from simjax.runs.training import batch_sharding
@@ -453,8 +481,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium"), default=None,
-                        help="run only the sweep-overhead, the device-count or the Gymnasium rows")
+    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile"), default=None,
+                        help="run only the sweep-overhead, the device-count, the Gymnasium or the compile-time rows")
     args = parser.parse_args(argv)
     if args.devices_probe:
         print(json.dumps(devices_probe(args.task)))
@@ -605,7 +633,7 @@ def device_lines(results: list[dict]) -> list[str]:
 
 
 def report_only(args) -> int:
-    """Only the sweep-overhead or device-count rows, appended as their own section."""
+    """Only the sweep-overhead, device-count, Gymnasium or compile-time rows, as their own section."""
     started = time.time()
     peak = matmul_peak()
     lines = [f"## {dt.date.today().isoformat()}: `python experiments/bench.py --only {args.only}` ({args.task})", "",
@@ -615,6 +643,8 @@ def report_only(args) -> int:
         lines += sweep_lines(bench_sweep(args.task))
     elif args.only == "devices":
         lines += device_lines(bench_devices(args.task))
+    elif args.only == "compile":
+        lines += compile_lines([bench_compile(args.task, algo) for algo in ("a2c", "sim", "rnd", "icm", "ec")])
     else:
         lines += gymnasium_lines(bench_gymnasium(args.task))
     lines += ["", f"Took {time.time() - started:.0f} s.", ""]
