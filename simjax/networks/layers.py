@@ -54,7 +54,7 @@ def drawn_as_matrix(init: nn.initializers.Initializer) -> nn.initializers.Initia
     ``orthogonal`` (which draws that matrix itself) and zeros (checked in the tests); an
     initialiser that uses fan-out (glorot) sees fan-out = features. XLA:CPU compiles a random draw
     of rank 2 several times faster than one of rank 4 (0.2 s against 1 s for a 3x3x4x4 kernel);
-    EC's 21 conv kernels made its init's compile about 80% draws."""
+    most of EC's init compile was the draws of its 21 conv kernels."""
     def draw(key, shape, dtype=jnp.float32):
         return init(key, (math.prod(shape[:-1]), shape[-1]), dtype).reshape(shape)
 
