@@ -286,13 +286,19 @@ def bench_parts(task: str, algo: str, seeds: int = 1, num_envs: int = 16, update
 
 def _sweep_chunk(config: TrainConfig, sweep: dict):
     """A jitted chunk of a sweep's members and the runner state it starts from."""
-    from simjax.agents import summarize
     from simjax.runs.grid import batch_inputs, check_sweep
 
     config, grid = check_sweep(dict(config.__dict__), sweep)
     trainer = make_trainer(config)
     runner = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
-    return (lambda r: jax.vmap(lambda x: (lambda out: (out[0], summarize(out[1])))(trainer.run_chunk(x)))(r)), runner
+    return _members_chunk(trainer), runner
+
+
+def _members_chunk(trainer):
+    """The chunk of every member (``vmap``), with its metric summary, as the commands run it."""
+    from simjax.agents import summarize
+
+    return lambda r: jax.vmap(lambda x: (lambda out: (out[0], summarize(out[1])))(trainer.run_chunk(x)))(r)
 
 
 def bench_sweep(task: str, values=(1, 2, 3, 4, 5), num_envs: int = 16, updates: int = 4) -> dict:
@@ -339,9 +345,9 @@ def bench_compile(task: str, algo: str, seeds: int = 3, num_envs: int = 16) -> d
     t0 = time.perf_counter()
     init = jax.jit(jax.vmap(trainer.init)).lower(*inputs).compile()
     init_s = time.perf_counter() - t0
-    chunk, _ = _sweep_chunk(config, {})
+    runner = init(*inputs)
     t0 = time.perf_counter()
-    jax.jit(chunk).lower(init(*inputs)).compile()
+    jax.jit(_members_chunk(trainer)).lower(runner).compile()
     return {"algo": algo, "seeds": seeds, "envs": num_envs, "init_s": init_s, "chunk_s": time.perf_counter() - t0}
 
 
