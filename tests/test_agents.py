@@ -205,25 +205,32 @@ def random_policy_success(env_name, num_envs=64, steps=400, seed=0):
 
 def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
     """The whole pipeline through the command line's own run(): A2C beats the random policy."""
-    config = TrainConfig(env="maze-tiny", num_envs=32, total_steps=120_000, log_every=20_480, learning_rate=1e-3)
+    # two seeds and 8 envs each: how soon one seed's policy starts to learn varies (measured at
+    # these settings, 14 seed-runs: 0.34-0.94 final success, seed 0 the slowest in both runs of
+    # it); at 32 envs and one seed, seeds 0-2 ended at 0.40, 0.33 and 0.18 against a bar of 0.37
+    config = TrainConfig(env="maze-tiny", num_envs=8, num_seeds=2, total_steps=120_000, log_every=20_000, learning_rate=1e-3)
     out = runs.run(config, tmp_path / "run", quiet=True)
     rows = list(csv.DictReader(open(out / "metrics.csv")))
-    assert len(rows) == config.num_logs == 6
-    assert [int(r["env_steps"]) for r in rows] == [20_480 * (i + 1) for i in range(6)]
+    assert len(rows) == 2 * config.num_logs == 12
+    for seed in (0, 1):
+        mine = [r for r in rows if int(r["seed"]) == seed]
+        assert [int(r["env_steps"]) for r in mine] == [20_000 * (i + 1) for i in range(6)]  # 125 updates of 8 x 20
     random_success = random_policy_success("maze-tiny")
     assert 0.05 < random_success < 0.4
-    final = np.mean([float(r["success_ratio"]) for r in rows[-2:]])
-    # 120k steps are early in learning with Doom's 7-14 degree turn steps: success about 3x the
-    # random policy's and episodes shorter by a few steps (0.44 against 0.12, 47 -> 39 measured)
+    final = np.mean([float(r["success_ratio"]) for r in rows[-4:]])  # both seeds' last two rows
+    first_length, last_length = (np.mean([float(r["mean_episode_length"]) for r in part]) for part in (rows[:2], rows[-2:]))
+    # measured (seeds 0 and 1 in three runs of the code as it is and was): 0.60-0.66 against the
+    # random policy's 0.12; episodes of 46-47 steps in the first row and 32-34 in the last
+    print(f"final success {final:.3f} (random {random_success:.3f}), episode length {first_length:.1f} -> {last_length:.1f}")
     assert final > random_success + 0.25, (final, random_success)
-    assert float(rows[-1]["mean_episode_length"]) < float(rows[0]["mean_episode_length"]) - 5
+    assert last_length < first_length - 5, (first_length, last_length)
     # the run folder: config, checkpoint with the trained parameters, learning curve
     saved = json.load(open(out / "config.json"))["config"]
     assert saved["env"] == "maze-tiny" and saved["learning_rate"] == 1e-3
     ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
-    assert ckpt["env_steps"] == 6 * 20_480 and ckpt["seeds"] == [0]
+    assert ckpt["env_steps"] == 120_000 and ckpt["seeds"] == [0, 1]
     kernel = ckpt["runner"]["params"]["policy"]["params"]["Encoder_0"]["PatchConv_0"]["kernel"]
-    assert kernel.shape == (1, 3, 3, 3, 16)  # leading axis: seeds
+    assert kernel.shape == (2, 3, 3, 3, 16)  # leading axis: seeds
     assert (out / "curve.png").stat().st_size > 10_000
 
 
