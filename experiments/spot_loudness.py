@@ -21,6 +21,12 @@ as three equal channels).
 Prints per spot: its distance to the goal and the spread in each (world, pipeline), then per
 column the ratio of the loudest spot to the quietest and the rank of spot 26, the last spot
 before the goal (1 = loudest of the 17).
+
+``--per-texture``: which of the map's wall textures make a spot loud. ViZDoom's look through
+the runs' default pipeline (``norm``, its statistics recomputed for each world), once as it is
+and once per texture with that texture's texels replaced by their mean colour (its light,
+geometry and offsets unchanged); prints the spread at the spots SIM's episodes pass and end
+in and at spot 26, the loudest over the quietest spot, spot 26's rank and the quietest spot.
 """
 
 from __future__ import annotations
@@ -43,9 +49,10 @@ WORLDS = ("maze-dense", "maze-dense-invented-looks")
 GOAL_SPOT = 26  # the spot nearest the goal, at the head of its corridor
 
 
-def world_frames(task: str, spots, walks: int, steps: int) -> list:
-    """Per spot: the frames (walks * steps, 42, 42, 3) of ``walks`` random walks from it."""
-    one_spot = mywayhome_spot(make(task), spots[0])
+def world_frames(task, spots, walks: int, steps: int) -> list:
+    """Per spot: the frames (walks * steps, 42, 42, 3) of ``walks`` random walks from it in
+    ``task`` (a task name or an env)."""
+    one_spot = mywayhome_spot(make(task) if isinstance(task, str) else task, spots[0])
 
     @jax.jit
     def frames(spawn, key):  # one compiled program for every spot: the spawn point is traced
@@ -58,11 +65,43 @@ def world_frames(task: str, spots, walks: int, steps: int) -> list:
             for j, s in enumerate(spots)]
 
 
+def flattened(env, texture: str | None):
+    """``env`` (ViZDoom's look) with ``texture``'s texels all its mean colour (None: as it is)."""
+    from simjax.envs.doom import doom_assets, doom_render
+
+    if texture is None:
+        return env
+    assets = dict(doom_assets.load())
+    texels = np.asarray(assets[f"wall_{texture}"], np.float64)
+    assets[f"wall_{texture}"] = np.broadcast_to(texels.mean((0, 1)), texels.shape)
+    out = copy.copy(env)
+    out.look = doom_render.build_look(env.layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],
+                                      assets["wall_u_reversed"], assets=assets)
+    return out
+
+
+def per_texture(args, spots, targets, apply) -> None:
+    shown = (24, 22, 16, GOAL_SPOT)
+    base = make(WORLDS[0])
+    print(f"ViZDoom's look, normalised per pixel; spread of the RND target (mean of {args.targets} random targets) over "
+          f"{args.walks} random walks of {args.steps} steps per spot, each texture in turn replaced by its mean colour")
+    print("flattened   " + "".join(f"spot {s}".rjust(9) for s in shown) + "  max/min  rank of 26  quietest")
+    for texture in (None, *mywayhome_map.TEXTURE_NAMES):
+        frames = world_frames(flattened(base, texture), spots, args.walks, args.steps)
+        stats = RunningMeanStd.create(frames[0].shape[1:]).update(jnp.concatenate(frames))
+        v = np.asarray([np.mean([spread(apply(p, normalize_frames(f, stats))) for p in targets]) for f in frames])
+        rank = int((v > v[spots.index(GOAL_SPOT)]).sum()) + 1
+        ratio = v.max() / max(v.min(), 1e-12)  # a spot that sees nothing but the flattened texture is near 0
+        print(f"{texture or 'none':10s}  " + "".join(f"{v[spots.index(s)]:9.2f}" for s in shown)
+              + (f"  {ratio:7.1f}" if ratio < 1e4 else "    >1e4") + f"  {rank:10d}  {spots[int(v.argmin())]:8d}")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--walks", type=int, default=16, help="random walks per spot")
     parser.add_argument("--steps", type=int, default=40, help="steps per walk")
     parser.add_argument("--targets", type=int, default=4, help="random targets to average over")
+    parser.add_argument("--per-texture", action="store_true", help="each wall texture's part in the spread (see above)")
     args = parser.parse_args(argv)
     if min(args.walks, args.steps, args.targets) < 1:
         parser.error("need --walks, --steps and --targets >= 1")
@@ -70,6 +109,10 @@ def main(argv=None) -> int:
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), jnp.zeros((1, 42, 42, 3))) for i in range(args.targets)]
     apply = jax.jit(lambda params, x: RNDTarget().apply(params, x))
+    if args.per_texture:
+        per_texture(args, spots, targets, apply)
+        print(f"({time.time() - start:.0f} s)")
+        return 0
 
     columns = {}
     for task in WORLDS:
