@@ -26,7 +26,9 @@ before the goal (1 = loudest of the 17).
 the runs' default pipeline (``norm``, its statistics recomputed for each world), once as it is
 and once per texture with that texture's texels replaced by their mean colour (its light,
 geometry and offsets unchanged); prints the spread at the spots SIM's episodes pass and end
-in and at spot 26, the loudest over the quietest spot, spot 26's rank and the quietest spot.
+in and at spot 26, the loudest over the quietest spot, spot 26's rank and the quietest spot; and
+the texture's contrast: the standard deviation of its texels' grey level and of its columns'
+mean grey level (a pattern that changes as the view pans).
 """
 
 from __future__ import annotations
@@ -81,11 +83,18 @@ def flattened(env, texture: str | None):
 
 
 def per_texture(args, spots, targets, apply) -> None:
+    from simjax.envs.doom import doom_assets
+
+    def grey(texture):  # (H, W) the texture's texels, mean of R, G, B, 0..255
+        return np.asarray(assets[f"wall_{texture}"], np.float64).mean(-1)
+
     shown = (24, 22, 16, GOAL_SPOT)
     base = make(WORLDS[0])
     print(f"ViZDoom's look, normalised per pixel; spread of the RND target (mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps per spot, each texture in turn replaced by its mean colour")
-    print("flattened   " + "".join(f"spot {s}".rjust(9) for s in shown) + "  max/min  rank of 26  quietest")
+    print("flattened   " + "".join(f"spot {s}".rjust(9) for s in shown)
+          + "  max/min  rank of 26  quietest  texels' grey std  column means' std")
+    assets = doom_assets.load()
     for texture in (None, *mywayhome_map.TEXTURE_NAMES):
         frames = world_frames(flattened(base, texture), spots, args.walks, args.steps)
         stats = RunningMeanStd.create(frames[0].shape[1:]).update(jnp.concatenate(frames))
@@ -93,7 +102,8 @@ def per_texture(args, spots, targets, apply) -> None:
         rank = int((v > v[spots.index(GOAL_SPOT)]).sum()) + 1
         ratio = v.max() / max(v.min(), 1e-12)  # a spot that sees nothing but the flattened texture is near 0
         print(f"{texture or 'none':10s}  " + "".join(f"{v[spots.index(s)]:9.2f}" for s in shown)
-              + (f"  {ratio:7.1f}" if ratio < 1e4 else "    >1e4") + f"  {rank:10d}  {spots[int(v.argmin())]:8d}")
+              + (f"  {ratio:7.1f}" if ratio < 1e4 else "    >1e4") + f"  {rank:10d}  {spots[int(v.argmin())]:8d}"
+              + ("" if texture is None else f"  {grey(texture).std():16.1f}  {grey(texture).mean(0).std():17.1f}"))
 
 
 def main(argv=None) -> int:
