@@ -124,13 +124,17 @@ def test_sim_output_shapes_for_several_windows(H, L, frames):
     tl, new_memory = build_timeline(memory, obs, reset, actions, last_obs, last_reset)
     chex.assert_trees_all_equal_shapes(memory, new_memory)
     x = normalize_frames(tl.frames, None)
-    params = sim.init(jax.random.PRNGKey(0), tl, x)
-    emb, prediction, logits = sim.net().apply(params["sim"], x, tl.actions, sim.windows(tl))
+
+    @jax.jit  # one program: run op by op, the model compiles each of its hundreds of slices alone
+    def run(x):  # the timeline's sizes stay Python ints: it is closed over, not traced
+        params = sim.init(jax.random.PRNGKey(0), tl, x)
+        return sim.net().apply(params["sim"], x, tl.actions, sim.windows(tl)), sim.apply(params, tl, x)
+
+    (emb, prediction, logits), (error, scored, loss, metrics) = run(x)
     T, N = actions.shape
     chex.assert_shape(emb, (sim.history + T + 1, N, 256))
     chex.assert_shape(prediction, (T, N, 64))
     chex.assert_shape(logits, (T, N, H - 1, A))
-    error, scored, loss, metrics = sim.apply(params, tl, x)
     chex.assert_shape([error, scored], (T, N))
     chex.assert_tree_all_finite((error, loss, metrics))
 
@@ -337,7 +341,8 @@ def test_no_wall_look_is_a_louder_tv_for_the_rnd_target():
     chex.assert_shape(per_look[0], (4 * walks * steps, 42, 42, 3))
     everything = jnp.concatenate(per_look)
     stats = RunningMeanStd.create(everything.shape[1:]).update(everything)
-    targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), everything[:1].astype(jnp.float32)) for i in range(2)]
+    init = jax.jit(RNDTarget().init)  # one program, not op by op
+    targets = [init(jax.random.PRNGKey(100 + i), everything[:1].astype(jnp.float32)) for i in range(2)]
     target = jax.jit(lambda p, f: RNDTarget().apply(p, normalize_frames(f, stats)))
     loudness = np.asarray([np.mean([spread(target(p, f)) for p in targets]) for f in per_look])
     assert np.all(np.isfinite(loudness)) and loudness.min() > 0
