@@ -42,7 +42,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import make, mywayhome_spot, random_walks
+from simjax.envs import make, mywayhome_look, mywayhome_spot, random_walks
 from simjax.envs.doom import mywayhome_map
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
 from simjax.novelty.networks import RNDTarget
@@ -69,16 +69,15 @@ def world_frames(task, spots, walks: int, steps: int) -> list:
 
 def flattened(env, texture: str | None):
     """``env`` (ViZDoom's look) with ``texture``'s texels all its mean colour (None: as it is)."""
-    from simjax.envs.doom import doom_assets, doom_render
+    from simjax.envs.doom import doom_assets
 
     if texture is None:
         return env
-    assets = dict(doom_assets.load())
+    assets = dict(doom_assets.load())  # a copy: load() is cached
     texels = np.asarray(assets[f"wall_{texture}"], np.float64)
     assets[f"wall_{texture}"] = np.broadcast_to(texels.mean((0, 1)), texels.shape)
     out = copy.copy(env)
-    out.look = doom_render.build_look(env.layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],
-                                      assets["wall_u_reversed"], assets=assets)
+    out.look = mywayhome_look(env.layout, assets)
     return out
 
 

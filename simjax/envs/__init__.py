@@ -51,11 +51,12 @@ def mywayhome_layout(spawn_ids=None) -> Layout:
     return Layout.build(mywayhome_map.WALLS, [goal_item(mywayhome_map.GOAL_XY)], spawn_xy)
 
 
-def mywayhome_look(layout: Layout):
-    """MyWayHome's walls as ViZDoom draws them (Freedoom's textures, the map's x-offsets)."""
+def mywayhome_look(layout: Layout, assets: dict | None = None):
+    """MyWayHome's walls as ViZDoom draws them (Freedoom's textures, the map's x-offsets), from
+    ``assets`` (default: the packaged ones; a diagnostic may pass altered textures)."""
     from simjax.envs.doom import doom_assets, doom_render
 
-    assets = doom_assets.load()
+    assets = doom_assets.load() if assets is None else assets
     return doom_render.build_look(layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],
                                   assets["wall_u_reversed"], assets=assets)
 
