@@ -4,7 +4,8 @@ came near each spot.
 
     python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
 
-For a run on a MyWayHome task (``simjax.envs.MYWAYHOME_TASKS``) with a novelty model (sim, rnd, icm). From every spawn spot, ``--walks``
+For a run on a MyWayHome task (``simjax.envs.is_mywayhome``: any look) with a novelty model (sim, rnd,
+icm). From every spawn spot, ``--walks``
 uniform random walks of ``--steps`` steps (random headings) are scored by the checkpoint's
 novelty model with its own running observation statistics; only transitions whose window lies
 wholly inside the walk count. The policy's side: 16 episodes per seed from the run's own task,
@@ -35,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from trajectories import episodes, first_episode  # noqa: E402
 
-from simjax.envs import MYWAYHOME_TASKS, mywayhome_spot, random_walks  # noqa: E402
+from simjax.envs import is_mywayhome, mywayhome_spot, random_walks  # noqa: E402
 from simjax.envs.doom import mywayhome_map  # noqa: E402
 from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
@@ -61,8 +62,9 @@ def main(argv=None) -> int:
     except FileNotFoundError as err:
         parser.error(str(err))
     config = restored.config
-    if config.env not in MYWAYHOME_TASKS or config.algo == "a2c":
-        parser.error(f"needs a run on {', '.join(MYWAYHOME_TASKS)} with a novelty model (sim, rnd, icm)")
+    if not is_mywayhome(config.env) or config.algo == "a2c":
+        parser.error("needs a run on a MyWayHome task (maze-dense, -sparse, -very-sparse, in any look) "
+                     "with a novelty model (sim, rnd, icm)")
     trainer = restored.trainer
     model = trainer.novelty.model
     if args.steps <= model.history + 1:

@@ -69,15 +69,10 @@ def world_frames(task, spots, walks: int, steps: int) -> list:
 
 def flattened(env, texture: str | None):
     """``env`` (ViZDoom's look) with ``texture``'s texels all its mean colour (None: as it is)."""
-    from simjax.envs.doom import doom_assets
-
     if texture is None:
         return env
-    assets = dict(doom_assets.load())  # a copy: load() is cached
-    texels = np.asarray(assets[f"wall_{texture}"], np.float64)
-    assets[f"wall_{texture}"] = np.broadcast_to(texels.mean((0, 1)), texels.shape)
     out = copy.copy(env)
-    out.look = mywayhome_look(env.layout, assets)
+    out.look = mywayhome_look(env.layout, flat=(texture,))
     return out
 
 

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from simjax.agents import sampling_policy
-from simjax.envs import MYWAYHOME_TASKS, rollout, uniform_policy
+from simjax.envs import is_mywayhome, rollout, uniform_policy
 from simjax.envs.doom import mywayhome_map
 from simjax.runs import restore
 
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
     if getattr(env, "generator", None) is not None or not hasattr(env, "layout"):
         parser.error(f"{restored.config.env} has no fixed map to draw trajectories on")
     goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
-    spots = mywayhome_map.SPAWN_SPOTS if restored.config.env in MYWAYHOME_TASKS else None
+    spots = mywayhome_map.SPAWN_SPOTS if is_mywayhome(restored.config.env) else None
     run = jax.jit(lambda p, k: episodes(env, network, p, k, args.envs))
     drawn = None
     # only the policy parameters: they read the same from checkpoints of older env states

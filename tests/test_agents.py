@@ -88,6 +88,7 @@ def test_reward_seam():
 
 @pytest.mark.parametrize("bad,match", [
     (dict(env="maze-nope"), "known tasks"),
+    (dict(env="maze-very-sparse-flat-SILVER"), "texture names"),
     (dict(algo="ppo"), "known algos"),
     (dict(learning_rate=-1e-4), "--learning-rate"),
     (dict(task_scale=-1.0), "--task-scale"),

@@ -1,5 +1,6 @@
 """The renderer, motion and the maze tasks."""
 
+import dataclasses
 import math
 
 import chex
@@ -264,6 +265,44 @@ def test_the_invented_looks_tasks_differ_from_their_twins_only_in_the_picture(na
     chex.assert_equal_shape([frames_t, frames_p])
     # every frame differs: the walls and the light are another world's
     assert np.all(np.abs(np.asarray(frames_t, int) - np.asarray(frames_p, int)).mean(axis=(2, 3, 4)) > 5)
+
+
+def test_a_flat_textures_task_paints_the_named_textures_their_mean_colour_and_nothing_else():
+    # a diagnostic world: which paint a bonus follows, with the map, light and rules unchanged
+    from simjax.envs.doom import doom_assets, doom_render
+
+    base, flat = make("maze-very-sparse"), make("maze-very-sparse-flat-SILVER2-TLITE6_1")
+    assert flat.task == dataclasses.replace(base.task, name="maze-very-sparse-flat-SILVER2-TLITE6_1")
+    chex.assert_trees_all_equal(flat.layout, base.layout)
+    for field in ("tex_start", "tex_width", "wall_offset", "wall_sign", "light_rgb", "plane_rgb", "sprite_prefix"):
+        chex.assert_trees_all_equal(getattr(flat.look, field), getattr(base.look, field))
+
+    def columns(look):  # (levels, columns, rows, 3): each filter level's texels, from the prefix sums
+        prefix = np.asarray(look.wall_prefix, np.float64).reshape(doom_render.LEVELS, look.tex_columns, -1, 3)
+        return np.diff(prefix[:, :, :-1], axis=2)
+
+    before, after = columns(base.look), columns(flat.look)
+    starts, widths = np.asarray(base.look.tex_start), np.asarray(base.look.tex_width)
+    for i, name in enumerate(mywayhome_map.TEXTURE_NAMES):
+        own = slice(starts[i], starts[i] + widths[i])
+        if name in ("SILVER2", "TLITE6_1"):
+            mean = np.asarray(doom_assets.load()[f"wall_{name}"], np.float64).mean((0, 1)) / 255.0
+            np.testing.assert_allclose(after[:, own], np.broadcast_to(mean, after[:, own].shape), atol=1e-4)
+            assert np.abs(before[:, own] - mean).max() > 0.2, name  # it had a pattern to lose
+        else:
+            np.testing.assert_array_equal(after[:, own], before[:, own], err_msg=name)
+
+
+@pytest.mark.parametrize("name,match", [
+    ("maze-very-sparse-flat-SILVER", "texture names"),
+    ("maze-very-sparse-flat-SILVER2-SILVER2", "distinct"),
+    ("maze-very-sparse-flat-", "texture names"),
+    ("maze-tiny-flat-SILVER2", "only maze-dense"),
+    ("maze-dense-invented-looks-flat-SILVER2", "only maze-dense"),
+])
+def test_a_bad_flat_textures_name_is_refused_before_anything_is_built(name, match):
+    with pytest.raises(ValueError, match=match):
+        make(name)
 
 
 def test_a_spot_walk_starts_at_the_spot_in_the_runs_own_world():

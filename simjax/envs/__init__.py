@@ -9,6 +9,11 @@ MyWayHome (paper section 3.1, appendix B.1; the tasks in docs/worlds.md):
   the same tasks (map, spots, Doom's motion) drawn with ``raycaster``'s invented wall looks instead
   of Freedoom's textures and ViZDoom's light; a diagnostic world, to tell what the look does to
   learning from what the motion does, not one of the paper's;
+- ``maze-very-sparse-flat-SILVER2-TLITE6_1`` (any of the three tasks, then ``-flat-`` and one or
+  more of ``mywayhome_map.TEXTURE_NAMES`` joined by ``-``): ViZDoom's look with each named
+  texture's texels replaced by their mean colour, its light, offsets and everything else as
+  they are; a diagnostic world, to test which paint a novelty bonus follows, not one of the
+  paper's;
 - ``maze-tiny``: one 320x128 room with the goal 160 units from a fixed spot, random heading,
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
 
@@ -36,6 +41,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
+
 from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
 from simjax.envs.dmlab.melon import MELON_TASK, MelonLevelEnv, melon_layout
 from simjax.envs.doom import mywayhome_map
@@ -51,19 +58,23 @@ def mywayhome_layout(spawn_ids=None) -> Layout:
     return Layout.build(mywayhome_map.WALLS, [goal_item(mywayhome_map.GOAL_XY)], spawn_xy)
 
 
-def mywayhome_look(layout: Layout, assets: dict | None = None):
+def mywayhome_look(layout: Layout, assets: dict | None = None, flat: tuple[str, ...] = ()):
     """MyWayHome's walls as ViZDoom draws them (Freedoom's textures, the map's x-offsets), from
-    ``assets`` (default: the packaged ones; a diagnostic may pass altered textures)."""
+    ``assets`` (default: the packaged ones), with each texture named in ``flat`` drawn as its
+    texels' mean colour (its light, which Doom takes from the palette indices, unchanged)."""
     from simjax.envs.doom import doom_assets, doom_render
 
-    assets = doom_assets.load() if assets is None else assets
+    assets = dict(doom_assets.load() if assets is None else assets)  # a copy: load() is cached
+    for texture in flat:
+        texels = np.asarray(assets[f"wall_{texture}"], np.float64)
+        assets[f"wall_{texture}"] = np.broadcast_to(texels.mean((0, 1)), texels.shape)
     return doom_render.build_look(layout.walls, mywayhome_map.TEXTURE_NAMES, assets["wall_offset_x"],
                                   assets["wall_u_reversed"], assets=assets)
 
 
-def _mywayhome(name: str, spawn_ids=None, textured: bool = True, **task) -> MazeEnv:
+def _mywayhome(name: str, spawn_ids=None, textured: bool = True, flat: tuple[str, ...] = (), **task) -> MazeEnv:
     layout = mywayhome_layout(spawn_ids)
-    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout) if textured else None)
+    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout, flat=flat) if textured else None)
 
 
 def mywayhome_spot(env: MazeEnv, spot: int) -> MazeEnv:
@@ -90,6 +101,30 @@ def _mywayhome_task(name: str) -> Callable[[], MazeEnv]:
     return lambda: _mywayhome(name, spots, textured=name == base, random_heading=random_heading)
 
 
+FLAT_MARK = "-flat-"
+
+
+def _flat_parts(name: str) -> tuple[str, tuple[str, ...]] | None:
+    """(task, textures) of a ``TASK-flat-TEX1-TEX2`` name, None for any other name; a
+    ValueError if the task is not one of MyWayHome's textured tasks or a texture is unknown."""
+    base, mark, rest = name.partition(FLAT_MARK)
+    if not mark:
+        return None
+    if base not in _MYWAYHOME:
+        raise ValueError(f"{name!r}: only {', '.join(_MYWAYHOME)} can have flat textures, not {base!r}")
+    textures = tuple(rest.split("-"))
+    unknown = [t for t in textures if t not in mywayhome_map.TEXTURE_NAMES]
+    if unknown or len(set(textures)) != len(textures):
+        raise ValueError(f"{name!r}: after {FLAT_MARK!r}, distinct texture names joined by '-' "
+                         f"({', '.join(mywayhome_map.TEXTURE_NAMES)}); got {', '.join(map(repr, textures))}")
+    return base, textures
+
+
+def is_mywayhome(name: str) -> bool:
+    """Whether task ``name`` is MyWayHome (its map and spawn spots), in any look."""
+    return name in MYWAYHOME_TASKS or name.partition(FLAT_MARK)[0] in _MYWAYHOME
+
+
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
     **{name: _mywayhome_task(name) for name in MYWAYHOME_TASKS},
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
@@ -109,9 +144,10 @@ def check_name(name: str) -> None:
         from simjax.envs.gymnax_adapter import check_gymnax_name
 
         check_gymnax_name(name[len(GYMNAX_PREFIX):])
-    elif name not in _REGISTRY:
+    elif _flat_parts(name) is None and name not in _REGISTRY:
         raise ValueError(
-            f"unknown task {name!r}; known tasks: {', '.join(TASK_NAMES)}, or gymnax:NAME for a gymnax environment"
+            f"unknown task {name!r}; known tasks: {', '.join(TASK_NAMES)}, TASK{FLAT_MARK}TEXTURE[-TEXTURE...] "
+            "for MyWayHome with flat textures, or gymnax:NAME for a gymnax environment"
         )
 
 
@@ -133,9 +169,15 @@ def make(name: str):
         from simjax.envs.gymnax_adapter import GymnaxEnv
 
         return GymnaxEnv(name[len(GYMNAX_PREFIX):])
+    flat = _flat_parts(name)
+    if flat is not None:
+        base, textures = flat
+        spots, random_heading = _MYWAYHOME[base]
+        return _mywayhome(name, spots, flat=textures, random_heading=random_heading)
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "FIXED_LENGTH_TASKS", "episodes_end_early", "MazeEnv", "MazeTask",
+__all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "is_mywayhome", "FLAT_MARK", "FIXED_LENGTH_TASKS",
+           "episodes_end_early", "MazeEnv", "MazeTask",
            "Layout", "mywayhome_spot", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
            "random_walks", "rollout", "given_actions", "starts_episode", "episode_metrics", "uniform_policy"]
