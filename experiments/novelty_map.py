@@ -4,12 +4,13 @@ came near each spot.
 
     python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
 
-For a run on a MyWayHome task (``simjax.envs.is_mywayhome``: any look) with a novelty model (sim, rnd,
-icm). From every spawn spot, ``--walks``
-uniform random walks of ``--steps`` steps (random headings) are scored by the checkpoint's
-novelty model with its own running observation statistics; only transitions whose window lies
-wholly inside the walk count. The policy's side: 16 episodes per seed from the run's own task,
-and the fraction of them that came within 96 units of each spot.
+For a run on a MyWayHome task (``simjax.envs.is_mywayhome``: any look) with a novelty model (sim,
+rnd, icm, ec). From every spawn spot, ``--walks`` uniform random walks of ``--steps`` steps
+(random headings) are scored by the checkpoint's novelty model with its own running observation
+statistics; only transitions whose window lies wholly inside the walk count. EC's error is its
+novelty beta - C(M, e) (the bonus before alpha), each walk with an episodic memory of its own
+that starts with the walk's first frame, as an episode's does. The policy's side: 16 episodes
+per seed from the run's own task, and the fraction of them that came within 96 units of each spot.
 
 Prints per spot: distance from the maze-very-sparse start (spot 10), the policy's visit
 fraction, the mean error per seed and, for models with a fixed RND target (sim, rnd), the
@@ -38,7 +39,7 @@ from trajectories import episodes, first_episode  # noqa: E402
 
 from simjax.envs import is_mywayhome, mywayhome_spot, random_walks  # noqa: E402
 from simjax.envs.doom import mywayhome_map  # noqa: E402
-from simjax.novelty.base import build_timeline, init_memory, normalize_frames, spread  # noqa: E402
+from simjax.novelty.base import Timeline, build_timeline, init_memory, normalize_frames, spread  # noqa: E402
 from simjax.novelty.networks import RNDTarget  # noqa: E402
 from simjax.runs import restore  # noqa: E402
 
@@ -64,7 +65,7 @@ def main(argv=None) -> int:
     config = restored.config
     if not is_mywayhome(config.env) or config.algo == "a2c":
         parser.error("needs a run on a MyWayHome task (maze-dense, -sparse, -very-sparse, in any look) "
-                     "with a novelty model (sim, rnd, icm)")
+                     "with a novelty model (sim, rnd, icm, ec)")
     trainer = restored.trainer
     model = trainer.novelty.model
     if args.steps <= model.history + 1:
@@ -109,9 +110,14 @@ def main(argv=None) -> int:
     has_target = "target" in runner.params["novelty"] and getattr(model, "target", "rnd") == "rnd"
 
     @jax.jit
-    def score(params, obs_stats):
+    def score(params, obs_stats, arrays):  # the walks an argument, not constants XLA would fold
+        tl = Timeline(*arrays, history=model.history)
         x = normalize_frames(tl.frames, obs_stats if config.obs_norm else None)
-        error, scored, _, _ = model.apply(params, tl, x)
+        if getattr(model, "stateful", False):  # EC: each walk its own episodic memory, holding the walk's first frame
+            state = model.init_state(params, tl.frames[tl.history], jax.random.PRNGKey(7))
+            error, scored, _, _, _ = model.apply_with_state(params, state, tl, x)
+        else:
+            error, scored, _, _ = model.apply(params, tl, x)
         target = RNDTarget().apply(params["target"], x[tl.history + 1 :]) if has_target else None
         return error, scored, target
 
@@ -119,7 +125,7 @@ def main(argv=None) -> int:
     for i in range(config.num_seeds):
         params = jax.tree.map(lambda x, i=i: x[i], runner.params["novelty"])
         stats = jax.tree.map(lambda x, i=i: x[i], runner.novelty.obs_stats)
-        error, scored, target = jax.device_get(score(params, stats))
+        error, scored, target = jax.device_get(score(params, stats, tuple(tl)[:4]))
         mask = np.asarray(scored) & full[:, None] & ongoing
         errors.append((np.asarray(error), mask))
         if has_target:  # half the target's summed variance over each spot's scored frames
