@@ -2,7 +2,7 @@
 RND target (SIM's and RND's prediction target) over random walks from each of the map's 17
 spawn spots, in each of its two worlds and through both of the novelty models' frame pipelines.
 
-    python experiments/spot_loudness.py [--walks 16] [--steps 40] [--targets 4]
+    python experiments/spot_loudness.py [--walks 16] [--steps 40] [--targets 4] [--worlds A,B,...]
 
 *Spread* is half the summed variance of the target's 64 outputs over a set of frames: the error
 of a model that predicts their mean target, averaged over ``--targets`` random targets. A
@@ -11,7 +11,8 @@ the agent is, so a loud spot keeps paying after it has long stopped being new, a
 pays little even before it has been seen.
 
 Worlds: MyWayHome as ViZDoom draws it (``maze-dense``) and with the invented looks
-(``maze-dense-invented-looks``); the same walks (keys, actions, motion) in both. Pipelines:
+(``maze-dense-invented-looks``), or the MyWayHome tasks ``--worlds`` names (e.g. a
+``maze-dense-flat-...`` world, ``simjax.envs``); the same walks (keys, actions, motion) in all. Pipelines:
 ``norm``, the runs' default (``--obs-norm true``): frames normalised per pixel by the
 statistics of all the walks' frames of that world together, as a run's running statistics
 would be; ``raw``: pixels / 255 (``--obs-norm false``); ``grey``: the mean of the three channels
@@ -42,13 +43,19 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import make, mywayhome_look, mywayhome_spot, random_walks
+from simjax.envs import check_name, is_mywayhome, make, mywayhome_look, mywayhome_spot, random_walks
 from simjax.envs.doom import mywayhome_map
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
 from simjax.novelty.networks import RNDTarget
 
 WORLDS = ("maze-dense", "maze-dense-invented-looks")
 GOAL_SPOT = 26  # the spot nearest the goal, at the head of its corridor
+
+
+def look_name(task: str) -> str:
+    """``task``'s look: what its name adds to its MyWayHome task's ('ViZDoom look' for none)."""
+    base = next(b for b in ("maze-very-sparse", "maze-sparse", "maze-dense") if task.startswith(b))
+    return task[len(base) + 1:] or "ViZDoom look"
 
 
 def world_frames(task, spots, walks: int, steps: int) -> list:
@@ -106,9 +113,18 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=int, default=40, help="steps per walk")
     parser.add_argument("--targets", type=int, default=4, help="random targets to average over")
     parser.add_argument("--per-texture", action="store_true", help="each wall texture's part in the spread (see above)")
+    parser.add_argument("--worlds", default=",".join(WORLDS), help="MyWayHome tasks to compare, comma-separated")
     args = parser.parse_args(argv)
     if min(args.walks, args.steps, args.targets) < 1:
         parser.error("need --walks, --steps and --targets >= 1")
+    worlds = args.worlds.split(",")
+    for task in worlds:
+        try:
+            check_name(task)
+        except ValueError as err:
+            parser.error(str(err))
+        if not is_mywayhome(task):
+            parser.error(f"--worlds: {task!r} is not a MyWayHome task")
     start = time.time()
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), jnp.zeros((1, 42, 42, 3))) for i in range(args.targets)]
@@ -119,7 +135,7 @@ def main(argv=None) -> int:
         return 0
 
     columns = {}
-    for task in WORLDS:
+    for task in worlds:
         frames = world_frames(task, spots, args.walks, args.steps)
         stack = jnp.concatenate(frames)
         stats = RunningMeanStd.create(stack.shape[1:]).update(stack)
@@ -132,7 +148,7 @@ def main(argv=None) -> int:
     goal = np.asarray(mywayhome_map.GOAL_XY)
     print(f"spread of the RND target (half its summed variance, mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps from each spawn spot")
-    print("spot  to goal  " + "  ".join(f"{t.removeprefix('maze-dense')[1:] or 'ViZDoom look'}, {p}".rjust(24)
+    print("spot  to goal  " + "  ".join(f"{look_name(t)}, {p}".rjust(24)
                                        for t, p in columns))
     for j, s in enumerate(spots):
         dist = np.linalg.norm(np.asarray(mywayhome_map.SPAWN_SPOTS[s]) - goal)
