@@ -3,6 +3,7 @@ RND target (SIM's and RND's prediction target) over random walks from each of th
 spawn spots, in each of its two worlds and through both of the novelty models' frame pipelines.
 
     python experiments/spot_loudness.py [--walks 16] [--steps 40] [--targets 4] [--worlds A,B,...]
+        [--assets NPZ]
 
 *Spread* is half the summed variance of the target's 64 outputs over a set of frames: the error
 of a model that predicts their mean target, averaged over ``--targets`` random targets. A
@@ -12,7 +13,10 @@ pays little even before it has been seen.
 
 Worlds: MyWayHome as ViZDoom draws it (``maze-dense``) and with the invented looks
 (``maze-dense-invented-looks``), or the MyWayHome tasks ``--worlds`` names (e.g. a
-``maze-dense-flat-...`` world, ``simjax.envs``); the same walks (keys, actions, motion) in all. Pipelines:
+``maze-dense-flat-...`` world, ``simjax.envs``); the same walks (keys, actions, motion) in all.
+``--assets NPZ`` adds ``maze-dense`` drawn from another conversion of Freedoom's graphics
+(``tools/freedoom_assets.py --vizdoom-dir DIR --out NPZ``: another freedoom2.wad's textures,
+palette and light tables on the same map), labelled with the file's name. Pipelines:
 ``norm``, the runs' default (``--obs-norm true``): frames normalised per pixel by the
 statistics of all the walks' frames of that world together, as a run's running statistics
 would be; ``raw``: pixels / 255 (``--obs-norm false``); ``grey``: the mean of the three channels
@@ -38,6 +42,7 @@ import argparse
 import copy
 import sys
 import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -52,8 +57,20 @@ WORLDS = ("maze-dense", "maze-dense-invented-looks")
 GOAL_SPOT = 26  # the spot nearest the goal, at the head of its corridor
 
 
-def look_name(task: str) -> str:
+def drawn_from(env, assets: Path):
+    """``env`` (ViZDoom's look) drawn from the Freedoom graphics in ``assets`` (an .npz)."""
+    from simjax.envs.doom import doom_assets
+
+    out = copy.copy(env)
+    out.look = mywayhome_look(env.layout, doom_assets.load(assets))
+    out.label = assets.stem
+    return out
+
+
+def look_name(task) -> str:
     """``task``'s look: what its name adds to its MyWayHome task's ('ViZDoom look' for none)."""
+    if not isinstance(task, str):
+        return task.label
     base = next(b for b in ("maze-very-sparse", "maze-sparse", "maze-dense") if task.startswith(b))
     return task[len(base) + 1:] or "ViZDoom look"
 
@@ -114,6 +131,7 @@ def main(argv=None) -> int:
     parser.add_argument("--targets", type=int, default=4, help="random targets to average over")
     parser.add_argument("--per-texture", action="store_true", help="each wall texture's part in the spread (see above)")
     parser.add_argument("--worlds", default=",".join(WORLDS), help="MyWayHome tasks to compare, comma-separated")
+    parser.add_argument("--assets", type=Path, help="also maze-dense drawn from this .npz of Freedoom's graphics")
     args = parser.parse_args(argv)
     if min(args.walks, args.steps, args.targets) < 1:
         parser.error("need --walks, --steps and --targets >= 1")
@@ -125,6 +143,8 @@ def main(argv=None) -> int:
             parser.error(str(err))
         if not is_mywayhome(task):
             parser.error(f"--worlds: {task!r} is not a MyWayHome task")
+    if args.assets is not None and not args.assets.is_file():
+        parser.error(f"--assets: no file {args.assets}")
     start = time.time()
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), jnp.zeros((1, 42, 42, 3))) for i in range(args.targets)]
@@ -135,6 +155,8 @@ def main(argv=None) -> int:
         return 0
 
     columns = {}
+    if args.assets is not None:
+        worlds.append(drawn_from(make("maze-dense"), args.assets))
     for task in worlds:
         frames = world_frames(task, spots, args.walks, args.steps)
         stack = jnp.concatenate(frames)
@@ -142,13 +164,13 @@ def main(argv=None) -> int:
         pipelines = {"norm": lambda f, st=stats: normalize_frames(f, st), "raw": lambda f: normalize_frames(f, None),
                      "grey": lambda f: jnp.repeat(to_unit(f).mean(-1, keepdims=True), 3, axis=-1)}
         for name, pipeline in pipelines.items():
-            columns[(task, name)] = np.asarray(
+            columns[(look_name(task), name)] = np.asarray(
                 [np.mean([spread(apply(p, pipeline(f))) for p in targets]) for f in frames])
 
     goal = np.asarray(mywayhome_map.GOAL_XY)
     print(f"spread of the RND target (half its summed variance, mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps from each spawn spot")
-    print("spot  to goal  " + "  ".join(f"{look_name(t)}, {p}".rjust(24)
+    print("spot  to goal  " + "  ".join(f"{t}, {p}".rjust(24)
                                        for t, p in columns))
     for j, s in enumerate(spots):
         dist = np.linalg.norm(np.asarray(mywayhome_map.SPAWN_SPOTS[s]) - goal)

@@ -184,10 +184,11 @@ def vizdoom_dir() -> str:
     return list(spec.submodule_search_locations)[0]
 
 
-def convert(vizdoom_path: str | None = None, verbose: bool = False) -> dict[str, np.ndarray]:
-    """Every array the asset holds, by key."""
+def convert(vizdoom_path: str | None = None, verbose: bool = False, iwad_path: str | None = None) -> dict[str, np.ndarray]:
+    """Every array the asset holds, by key; ``iwad_path`` reads the graphics from another
+    freedoom2.wad than ``vizdoom_path``'s (the map still from there)."""
     vizdoom_path = vizdoom_path or vizdoom_dir()
-    iwad = Wad.load(os.path.join(vizdoom_path, "freedoom2.wad"))
+    iwad = Wad.load(iwad_path or os.path.join(vizdoom_path, "freedoom2.wad"))
     level = Wad.load(os.path.join(vizdoom_path, "scenarios", "my_way_home.wad"))
     game_map = load_doom_module("mywayhome_map")
     names = tuple(n.upper() for n in game_map.TEXTURE_NAMES)
@@ -223,9 +224,13 @@ def main() -> None:
     parser.add_argument("--out", default=DEFAULT_OUT, help="output .npz (default: %(default)s)")
     parser.add_argument("--vizdoom-dir", help="folder holding freedoom2.wad and scenarios/ "
                         "(default: the installed vizdoom package)")
+    parser.add_argument("--iwad", help="read the graphics from this freedoom2.wad instead (e.g. an older "
+                        "Freedoom's, for a diagnostic; the map still from --vizdoom-dir)")
     parser.add_argument("--quiet", action="store_true", help="do not print what was converted")
     args = parser.parse_args()
-    arrays = convert(args.vizdoom_dir, verbose=not args.quiet)
+    if args.iwad is not None and not os.path.isfile(args.iwad):
+        parser.error(f"--iwad: no file {args.iwad}")
+    arrays = convert(args.vizdoom_dir, verbose=not args.quiet, iwad_path=args.iwad)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     np.savez_compressed(args.out, **arrays)
     if not args.quiet:
