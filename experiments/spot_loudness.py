@@ -67,6 +67,20 @@ def drawn_from(env, assets: Path):
     return out
 
 
+def compare_textures(assets: Path) -> None:
+    """Per wall texture of the map: whether ``assets`` has the packaged texels, and both
+    versions' contrast (std of the texels' grey level and of the columns' mean grey level)."""
+    from simjax.envs.doom import doom_assets
+
+    other, ours = doom_assets.load(assets), doom_assets.load()
+    print(f"texture   same texels  texel grey std {assets.stem} / packaged  column-mean grey std  mean grey")
+    for name in mywayhome_map.TEXTURE_NAMES:
+        a, b = (np.asarray(x[f"wall_{name}"], np.float64).mean(-1) for x in (other, ours))
+        same = a.shape == b.shape and np.array_equal(a, b)
+        print(f"{name:9s} {str(same):>11s}  {a.std():16.1f} / {b.std():5.1f}  {a.mean(0).std():14.1f} / {b.mean(0).std():5.1f}"
+              f"  {a.mean():5.1f} / {b.mean():5.1f}")
+
+
 def look_name(task) -> str:
     """``task``'s look: what its name adds to its MyWayHome task's ('ViZDoom look' for none)."""
     if not isinstance(task, str):
@@ -178,6 +192,8 @@ def main(argv=None) -> int:
     g = spots.index(GOAL_SPOT)
     print("max/min       " + "  ".join(f"{v.max() / v.min():24.1f}" for v in columns.values()))
     print(f"rank of {GOAL_SPOT}    " + "  ".join(f"{int((v > v[g]).sum()) + 1:24d}" for v in columns.values()))
+    if args.assets is not None:
+        compare_textures(args.assets)
     print(f"({time.time() - start:.0f} s)")
     return 0
 
