@@ -15,8 +15,9 @@ Worlds: MyWayHome as ViZDoom draws it (``maze-dense``) and with the invented loo
 (``maze-dense-invented-looks``), or the MyWayHome tasks ``--worlds`` names (e.g. a
 ``maze-dense-flat-...`` world, ``simjax.envs``); the same walks (keys, actions, motion) in all.
 ``--assets NPZ`` adds ``maze-dense`` drawn from another conversion of Freedoom's graphics
-(``tools/freedoom_assets.py --vizdoom-dir DIR --out NPZ``: another freedoom2.wad's textures,
-palette and light tables on the same map), labelled with the file's name. Pipelines:
+(``tools/freedoom_assets.py --iwad FREEDOOM2.WAD --out NPZ``: another freedoom2.wad's textures,
+palette and light tables on the same map), labelled with the file's name, and prints how each
+wall texture's contrast differs between the two. Pipelines:
 ``norm``, the runs' default (``--obs-norm true``): frames normalised per pixel by the
 statistics of all the walks' frames of that world together, as a run's running statistics
 would be; ``raw``: pixels / 255 (``--obs-norm false``); ``grey``: the mean of the three channels
@@ -184,8 +185,7 @@ def main(argv=None) -> int:
     goal = np.asarray(mywayhome_map.GOAL_XY)
     print(f"spread of the RND target (half its summed variance, mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps from each spawn spot")
-    print("spot  to goal  " + "  ".join(f"{t}, {p}".rjust(24)
-                                       for t, p in columns))
+    print("spot  to goal  " + "  ".join(f"{t}, {p}".rjust(24) for t, p in columns))
     for j, s in enumerate(spots):
         dist = np.linalg.norm(np.asarray(mywayhome_map.SPAWN_SPOTS[s]) - goal)
         print(f"{s:4d}  {dist:7.0f}  " + "  ".join(f"{v[j]:24.3f}" for v in columns.values()))
