@@ -104,14 +104,14 @@ def main(argv=None) -> int:
     n = obs.shape[1]
     reset = jnp.zeros(actions.shape, bool).at[0].set(True)
     memory = init_memory(model.history, n, obs.shape[2:], obs.dtype)
-    tl, _ = build_timeline(memory, obs, reset, actions, last_obs, jnp.zeros((n,), bool))
+    walks, _ = build_timeline(memory, obs, reset, actions, last_obs, jnp.zeros((n,), bool))
     full = np.arange(args.steps) >= model.history  # the whole window lies in the walk
 
     has_target = "target" in runner.params["novelty"] and getattr(model, "target", "rnd") == "rnd"
 
     @jax.jit
-    def score(params, obs_stats, arrays):  # the walks an argument, not constants XLA would fold
-        tl = Timeline(*arrays, history=model.history)
+    def score(params, obs_stats, frames, actions, segment, valid):  # the walks as arguments, not constants XLA would fold
+        tl = Timeline(frames, actions, segment, valid, history=model.history)
         x = normalize_frames(tl.frames, obs_stats if config.obs_norm else None)
         if getattr(model, "stateful", False):  # EC: each walk its own episodic memory, holding the walk's first frame
             state = model.init_state(params, tl.frames[tl.history], jax.random.PRNGKey(7))
@@ -125,7 +125,7 @@ def main(argv=None) -> int:
     for i in range(config.num_seeds):
         params = jax.tree.map(lambda x, i=i: x[i], runner.params["novelty"])
         stats = jax.tree.map(lambda x, i=i: x[i], runner.novelty.obs_stats)
-        error, scored, target = jax.device_get(score(params, stats, tuple(tl)[:4]))
+        error, scored, target = jax.device_get(score(params, stats, walks.frames, walks.actions, walks.segment, walks.valid))
         mask = np.asarray(scored) & full[:, None] & ongoing
         errors.append((np.asarray(error), mask))
         if has_target:  # half the target's summed variance over each spot's scored frames

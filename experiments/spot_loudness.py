@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import check_name, is_mywayhome, make, mywayhome_look, mywayhome_spot, random_walks
+from simjax.envs import FLAT_MARK, check_name, is_mywayhome, make, mywayhome_look, mywayhome_spot, random_walks
 from simjax.envs.doom import mywayhome_map
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
 from simjax.novelty.networks import RNDTarget
@@ -106,15 +106,6 @@ def world_frames(task, spots, walks: int, steps: int) -> list:
             for j, s in enumerate(spots)]
 
 
-def flattened(env, texture: str | None):
-    """``env`` (ViZDoom's look) with ``texture``'s texels all its mean colour (None: as it is)."""
-    if texture is None:
-        return env
-    out = copy.copy(env)
-    out.look = mywayhome_look(env.layout, flat=(texture,))
-    return out
-
-
 def per_texture(args, spots, targets, apply) -> None:
     from simjax.envs.doom import doom_assets
 
@@ -122,14 +113,14 @@ def per_texture(args, spots, targets, apply) -> None:
         return np.asarray(assets[f"wall_{texture}"], np.float64).mean(-1)
 
     shown = (24, 22, 16, GOAL_SPOT)
-    base = make(WORLDS[0])
     print(f"ViZDoom's look, normalised per pixel; spread of the RND target (mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps per spot, each texture in turn replaced by its mean colour")
     print("flattened   " + "".join(f"spot {s}".rjust(9) for s in shown)
           + "  max/min  rank of 26  quietest  texels' grey std  column means' std")
     assets = doom_assets.load()
     for texture in (None, *mywayhome_map.TEXTURE_NAMES):
-        frames = world_frames(flattened(base, texture), spots, args.walks, args.steps)
+        world = WORLDS[0] if texture is None else f"{WORLDS[0]}{FLAT_MARK}{texture}"  # the flat-textures task
+        frames = world_frames(world, spots, args.walks, args.steps)
         stats = RunningMeanStd.create(frames[0].shape[1:]).update(jnp.concatenate(frames))
         v = np.asarray([np.mean([spread(apply(p, normalize_frames(f, stats))) for p in targets]) for f in frames])
         rank = int((v > v[spots.index(GOAL_SPOT)]).sum()) + 1
