@@ -33,7 +33,8 @@ Measures, each as the median of several calls of one compiled program (compile t
 ``--only devices`` compares 2 SIM seeds on one CPU device with the same sharded over two
 (``--xla_force_host_platform_device_count=2``), each in a fresh process. ``--only compile``
 times the compiles of the two programs a run starts with, the seed-vmapped ``init`` and the
-chunk, for each method at 16 envs and 3 seeds.
+chunk, for each method at 16 envs and 3 seeds. ``--only ec`` runs EC's two costs alone: its
+loop at 3 seeds (what its runs train) and its pretraining's updates.
 """
 
 from __future__ import annotations
@@ -487,8 +488,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile"), default=None,
-                        help="run only the sweep-overhead, the device-count, the Gymnasium or the compile-time rows")
+    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile", "ec"), default=None,
+                        help="run only the sweep-overhead, the device-count, the Gymnasium, the compile-time or "
+                             "EC's rows (its loop at 3 seeds, its pretraining's updates)")
     args = parser.parse_args(argv)
     if args.devices_probe:
         print(json.dumps(devices_probe(args.task)))
@@ -638,8 +640,16 @@ def device_lines(results: list[dict]) -> list[str]:
             f"`--xla_force_host_platform_device_count`): x{two['steps_per_s'] / one['steps_per_s']:.2f}."]
 
 
+def ec_lines(loop: dict, pre: dict) -> list[str]:
+    """EC's two costs: its policy loop as a run trains it, and its pretraining's updates."""
+    return [f"- EC's training loop as `make train` runs it, {loop['seeds']} seeds x {loop['envs']} envs: "
+            f"{loop['steps_per_s']:,.0f} agent steps/s in total (chunk compiled in {loop['compile_s']:.1f} s)",
+            f"- EC's pretraining alone (1 seed, batches of 64 pairs, Adam): {pre['pairs_per_s']:,.0f} pairs/s, "
+            f"{pre['flops_per_pair'] / 1e9:.2f} GFLOPs per pair"]
+
+
 def report_only(args) -> int:
-    """Only the sweep-overhead, device-count, Gymnasium or compile-time rows, as their own section."""
+    """Only the sweep-overhead, device-count, Gymnasium, compile-time or EC rows, as their own section."""
     started = time.time()
     peak = matmul_peak()
     lines = [f"## {dt.date.today().isoformat()}: `python experiments/bench.py --only {args.only}` ({args.task})", "",
@@ -651,6 +661,8 @@ def report_only(args) -> int:
         lines += device_lines(bench_devices(args.task))
     elif args.only == "compile":
         lines += compile_lines([bench_compile(args.task, algo) for algo in ("a2c", "sim", "rnd", "icm", "ec")])
+    elif args.only == "ec":
+        lines += ec_lines(bench_loop(args.task, "ec", 3), bench_ec_pretraining(args.task))
     else:
         lines += gymnasium_lines(bench_gymnasium(args.task))
     lines += ["", f"Took {time.time() - started:.0f} s.", ""]

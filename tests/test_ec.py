@@ -18,7 +18,7 @@ from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
-from simjax.novelty import EC, Novelty, NoveltySettings, make_model
+from simjax.novelty import EC, RND, Novelty, NoveltySettings, make_model
 from simjax.novelty.ec import (
     BETA,
     ECState,
@@ -346,6 +346,26 @@ def test_checkpoints_from_before_the_model_state_still_load(tmp_path):
 
 
 # ------------------------------------------------------------------------------- end to end
+
+def test_the_learner_leaves_ecs_network_and_its_optimiser_state_untouched():
+    """EC's network is fixed after pretraining: the learner's updates change the policy only,
+    and take no optimiser step for the network (its Adam state stays as initialised). ECO's
+    network is trained; every other model's is, and A2C has none."""
+    config = TrainConfig(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8, ec_memory=8,
+                         ec_pretrain_steps=0, total_steps=16, log_every=16)
+    trainer = make_trainer(config)
+    assert not trainer.novelty.trainable
+    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
+    after, metrics = jax.jit(trainer.run_chunk)(runner)
+    chex.assert_tree_all_finite((after.params, metrics))
+    chex.assert_trees_all_equal(after.params["novelty"], runner.params["novelty"])
+    novelty_state = lambda r: r.opt_state.inner_states["novelty"]  # noqa: E731
+    chex.assert_trees_all_equal(novelty_state(after), novelty_state(runner))
+    assert not np.array_equal(after.params["policy"]["params"]["Dense_0"]["kernel"],
+                              runner.params["policy"]["params"]["Dense_0"]["kernel"])
+    assert Novelty(EC(A, online=True, **TINY)).trainable and Novelty(RND(A)).trainable
+    assert not Novelty(None).trainable
+
 
 def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_the_last_chunk(
         tmp_path, capsys, monkeypatch):

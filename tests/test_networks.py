@@ -12,7 +12,16 @@ import pytest
 from helpers import flat_draw
 
 from simjax.networks import ActorCritic, Encoder
-from simjax.networks.layers import PatchConv, conv_stack, drawn_as_matrix, from_chwn, orthogonal, to_chwn
+from simjax.networks.layers import (
+    PatchConv,
+    conv_stack,
+    drawn_as_matrix,
+    extract_patches,
+    from_chwn,
+    max_pool,
+    orthogonal,
+    to_chwn,
+)
 
 
 @pytest.mark.parametrize("layout", ["NHWC", "CHWN"])
@@ -27,6 +36,29 @@ def test_patch_conv_matches_flax_conv(kernel, stride, padding, size, layout):
     chex.assert_trees_all_equal(mine.init(jax.random.PRNGKey(1), mine_x), params)  # flax's values too
     out = mine.apply(params, mine_x)
     np.testing.assert_allclose(from_chwn(out) if layout == "CHWN" else out, ref.apply(params, x), atol=1e-5, rtol=1e-5)
+
+
+def test_patches_and_max_pool_are_exactly_the_one_pass_forms():
+    """extract_patches gathers along W, then H: the very array of one concatenation of the
+    k*k windows in (ki, kj, c) order; max_pool is lax.reduce_window's max (inputs >= 0)."""
+    x = flat_draw(jax.random.uniform, jax.random.PRNGKey(2), (2, 12, 9, 3))
+
+    @functools.partial(jax.jit, static_argnums=(1, 2, 3, 4, 5))
+    def both(x, k, s, pad_h, pad_w, out):
+        padded = jnp.pad(x, [(0, 0), pad_h, pad_w, (0, 0)])
+        views = [padded[:, i:i + s * (out[0] - 1) + 1:s, j:j + s * (out[1] - 1) + 1:s] for i in range(k) for j in range(k)]
+        return jnp.concatenate(views, axis=-1), extract_patches(x, k, s, "SAME" if pad_h != (0, 0) else "VALID")
+
+    for k, s, pad_h, pad_w, out in [(7, 2, (2, 3), (3, 3), (6, 5)), (3, 1, (1, 1), (1, 1), (12, 9)),
+                                    (3, 2, (0, 0), (0, 0), (5, 4))]:
+        one_pass, patches = both(x, k, s, pad_h, pad_w, out)
+        chex.assert_shape(patches, (2, *out, k * k * 3))
+        np.testing.assert_array_equal(patches, one_pass)
+    relu = jnp.maximum(x - 0.5, 0.0)  # zeros and ties, as after a ReLU
+    pooled = jax.jit(max_pool)(relu)
+    ref = jax.lax.reduce_window(relu, -jnp.inf, jax.lax.max, (1, 3, 3, 1), (1, 2, 2, 1), [(0, 0), (0, 1), (1, 1), (0, 0)])
+    chex.assert_shape(pooled, (2, 6, 5, 3))
+    np.testing.assert_array_equal(pooled, ref)
 
 
 def test_conv_kernels_drawn_as_a_matrix_are_the_initialisers_own_values():

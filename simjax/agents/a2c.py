@@ -161,6 +161,17 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
     }
 
 
+def frozen(tx: optax.GradientTransformation) -> optax.GradientTransformation:
+    """``tx``'s state, never updated, and zero updates: the optimiser of a group whose params
+    stay fixed (EC's network after its pretraining). A frozen model's gradient is zero, and Adam
+    would still read and write its moments and params every update (EC's are 12M floats, 5% of
+    its update); the state keeps ``tx``'s structure, so checkpoints load either way."""
+    def update(updates, state, params=None):
+        return jax.tree.map(jnp.zeros_like, updates), state
+
+    return optax.GradientTransformation(tx.init, update)
+
+
 def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
     """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
     env = make(config.env) if env is None else env
@@ -175,8 +186,9 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
             clip, eps = scale * hyper.max_grad_norm, scale * ADAM_EPS
             return optax.chain(optax.clip_by_global_norm(clip), optax.adam(hyper.learning_rate, eps=eps))
 
+        novelty_group = group(1.0) if novelty.trainable else frozen(group(1.0))
         return optax.multi_transform(
-            {"policy": group(hyper.policy_weight), "novelty": group(1.0)},
+            {"policy": group(hyper.policy_weight), "novelty": novelty_group},
             {"policy": "policy", "novelty": "novelty"},
         )
 
@@ -226,6 +238,8 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         )
         updates, opt_state = optimizer(runner.hyper).update(grads, runner.opt_state, runner.params)
         params = optax.apply_updates(runner.params, updates)
+        if not novelty.trainable:  # kept as they are, not plus zero (which writes -0.0 as +0.0)
+            params = {**params, "novelty": runner.params["novelty"]}
         m = traj.metrics
         done = m["episode_done"]
         info = {

@@ -58,6 +58,12 @@ class Novelty:
     obs_norm: bool = True
     bonus_norm: bool = False
 
+    @property
+    def trainable(self) -> bool:
+        """Whether the learner's gradient steps change the model's params (not EC's, fixed after
+        its pretraining; nothing to change without a model)."""
+        return self.model is not None and getattr(self.model, "trainable", True)
+
     def init(self, key, obs: jnp.ndarray):
         n = obs.shape[0]
         state = NoveltyState(

@@ -89,7 +89,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from simjax.networks.layers import PatchConv, extract_patches
+from simjax.networks.layers import PatchConv, max_pool
 from simjax.novelty.base import Timeline, masked_mean, to_unit
 
 # the original code's values (see the table above)
@@ -107,16 +107,6 @@ WIDTH = 64  # filters of the first ResNet stage (64, 128, 256, 512)
 
 
 # ------------------------------------------------------------------------------------- networks
-
-def max_pool(x: jnp.ndarray, window: int = 3, stride: int = 2) -> jnp.ndarray:
-    """SAME max pooling of non-negative (..., H, W, C) as a max over strided slices (its gradient
-    stays fast inside loops on XLA:CPU, like ``PatchConv``'s)."""
-    c = x.shape[-1]
-    # SAME pads with zeros; the inputs are ReLU outputs (>= 0), so padding never changes a max
-    patches = extract_patches(x, window, stride, "SAME")
-    shape = patches.shape[:-1] + (window * window, c)
-    return jnp.max(patches.reshape(shape), axis=-2)
-
 
 class BasicBlock(nn.Module):
     """A pre-activation basic block (He et al. 2016b, as EC's keras_resnet): relu-conv 3x3 (stride)
@@ -327,6 +317,11 @@ class EC:
     @property
     def history(self) -> int:
         return self.window if self.online else 0
+
+    @property
+    def trainable(self) -> bool:
+        """EC's network is fixed after pretraining; ECO's trains with the policy."""
+        return self.online
 
     def net(self) -> ReachabilityNet:
         return ReachabilityNet(self.width, self.features, self.features)
