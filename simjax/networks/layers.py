@@ -74,6 +74,16 @@ def _same_or_valid(h: int, w: int, kernel: int, stride: int, padding: str):
     raise ValueError(f"padding must be 'SAME' or 'VALID', got {padding!r}")
 
 
+def _strided(x: jnp.ndarray, kernel: int, stride: int, out: int, axis: int) -> list[jnp.ndarray]:
+    """The ``kernel`` strided views of x along ``axis`` alone, each ``out`` long."""
+    index = [slice(None)] * x.ndim
+    views = []
+    for i in range(kernel):
+        index[axis] = slice(i, i + stride * (out - 1) + 1, stride)
+        views.append(x[tuple(index)])
+    return views
+
+
 def _windows(x: jnp.ndarray, kernel: int, stride: int, out_h: int, out_w: int, h_axis: int) -> list[jnp.ndarray]:
     """The kernel*kernel strided views of x, (ki, kj) row-major; H is ``h_axis``, W the next."""
     index = [slice(None)] * x.ndim
@@ -83,16 +93,6 @@ def _windows(x: jnp.ndarray, kernel: int, stride: int, out_h: int, out_w: int, h
             index[h_axis] = slice(i, i + stride * (out_h - 1) + 1, stride)
             index[h_axis + 1] = slice(j, j + stride * (out_w - 1) + 1, stride)
             views.append(x[tuple(index)])
-    return views
-
-
-def _strided(x: jnp.ndarray, kernel: int, stride: int, out: int, axis: int) -> list[jnp.ndarray]:
-    """The ``kernel`` strided views of x along ``axis`` alone, each ``out`` long."""
-    index = [slice(None)] * x.ndim
-    views = []
-    for i in range(kernel):
-        index[axis] = slice(i, i + stride * (out - 1) + 1, stride)
-        views.append(x[tuple(index)])
     return views
 
 
@@ -111,8 +111,9 @@ def extract_patches(x: jnp.ndarray, kernel: int, stride: int, padding: str) -> j
 def max_pool(x: jnp.ndarray, window: int = 3, stride: int = 2) -> jnp.ndarray:
     """SAME max pooling of non-negative (..., H, W, C): the elementwise maximum of the strided
     views, along W and then along H. SAME pads with zeros, which never change a max of inputs
-    >= 0. Written with slices and ``jnp.maximum``, which XLA:CPU fuses into one pass and whose
-    gradient stays fast inside loops (``lax.reduce_window``'s is a select-and-scatter)."""
+    >= 0. Slices and ``jnp.maximum``, like ``extract_patches``, so the gradient is pads and
+    selects; no window array is built (EC's pool of a rollout: 0.06 s, against 0.24 s as a max
+    over the concatenated windows; BENCHMARKS)."""
     out_h, out_w, pad_h, pad_w = _same_or_valid(x.shape[-3], x.shape[-2], window, stride, "SAME")
     x = jnp.pad(x, [(0, 0)] * (x.ndim - 3) + [pad_h, pad_w, (0, 0)])
     x = functools.reduce(jnp.maximum, _strided(x, window, stride, out_w, x.ndim - 2))
