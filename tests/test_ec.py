@@ -140,6 +140,9 @@ def test_ec_is_made_from_settings():
     model = make_model(settings, A)
     assert isinstance(model, EC) and (model.capacity, model.width, model.features, model.online) == (50, 8, 32, True)
     assert model.history == model.window and EC(A).history == 0
+    # the learner steps ECO's network, not EC's (fixed after pretraining); every other model trains
+    assert Novelty(model).trainable and not Novelty(EC(A)).trainable
+    assert Novelty(RND(A)).trainable and not Novelty(None).trainable
     assert model.beta == 1.0 and EC(A).beta == BETA == 0.5
     # the default follows the EC paper's rule: 1 where an episode can end early, else the original 0.5
     assert TrainConfig(algo="ec").ec_beta == TrainConfig(algo="ec", env="melon").ec_beta == 1.0
@@ -347,26 +350,6 @@ def test_checkpoints_from_before_the_model_state_still_load(tmp_path):
 
 # ------------------------------------------------------------------------------- end to end
 
-def test_the_learner_leaves_ecs_network_and_its_optimiser_state_untouched():
-    """EC's network is fixed after pretraining: the learner's updates change the policy only,
-    and take no optimiser step for the network (its Adam state stays as initialised). ECO's
-    network is trained; every other model's is, and A2C has none."""
-    config = TrainConfig(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8, ec_memory=8,
-                         ec_pretrain_steps=0, total_steps=16, log_every=16)
-    trainer = make_trainer(config)
-    assert not trainer.novelty.trainable
-    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
-    after, metrics = jax.jit(trainer.run_chunk)(runner)
-    chex.assert_tree_all_finite((after.params, metrics))
-    chex.assert_trees_all_equal(after.params["novelty"], runner.params["novelty"])
-    novelty_state = lambda r: r.opt_state.inner_states["novelty"]  # noqa: E731
-    chex.assert_trees_all_equal(novelty_state(after), novelty_state(runner))
-    assert not np.array_equal(after.params["policy"]["params"]["Dense_0"]["kernel"],
-                              runner.params["policy"]["params"]["Dense_0"]["kernel"])
-    assert Novelty(EC(A, online=True, **TINY)).trainable and Novelty(RND(A)).trainable
-    assert not Novelty(None).trainable
-
-
 def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_the_last_chunk(
         tmp_path, capsys, monkeypatch):
     """``python -m simjax.train --algo ec`` on maze-tiny: pretraining in two chunks, then rows
@@ -387,6 +370,10 @@ def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_t
     ckpt = load_checkpoint(whole)
     assert ckpt["env_steps"] == 2016 and np.asarray(ckpt["runner"]["novelty"]["model"]["count"]).min() >= 1
     assert not (whole / PRETRAIN_STATE).exists()  # removed once the pretraining's checkpoint is written
+    # the policy's updates took no optimiser step for the fixed network: its Adam state is as initialised
+    adam = ckpt["runner"]["opt_state"]["inner_states"]["novelty"]["inner_state"]["1"]["0"]
+    assert int(np.asarray(adam["count"]).max()) == 0
+    assert all(not np.any(np.asarray(m)) for m in jax.tree.leaves((adam["mu"], adam["nu"])))
 
     saved = []
 
