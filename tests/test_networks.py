@@ -26,8 +26,10 @@ from simjax.networks.layers import (
 
 @pytest.mark.parametrize("layout", ["NHWC", "CHWN"])
 @pytest.mark.parametrize("kernel,stride,padding,size", [(3, 2, "SAME", 42), (3, 2, "SAME", 21), (8, 4, "VALID", 42),
-                                                        (4, 2, "VALID", 10), (3, 1, "VALID", 4), (3, 1, "SAME", 7)])
+                                                        (4, 2, "VALID", 10), (3, 1, "VALID", 4), (3, 1, "SAME", 7),
+                                                        (3, 1, "SAME", 2), (3, 2, "SAME", 2)])
 def test_patch_conv_matches_flax_conv(kernel, stride, padding, size, layout):
+    # maps smaller than the kernel (size 2) take the dense form in NHWC, EC's 2x2 stage
     x = flat_draw(jax.random.normal, jax.random.PRNGKey(0), (2, 3, size, size, 5))
     ref = nn.Conv(7, (kernel, kernel), strides=(stride, stride), padding=padding)
     params = ref.init(jax.random.PRNGKey(1), x)

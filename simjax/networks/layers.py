@@ -22,12 +22,14 @@ flax's, bit for bit (tested).
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Callable, Sequence
 
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def orthogonal(scale: float = 1.0) -> nn.initializers.Initializer:
@@ -138,6 +140,28 @@ def from_chwn(x: jnp.ndarray) -> jnp.ndarray:
     return jnp.moveaxis(x, (0, 1, 2), (-1, -3, -2))
 
 
+def _taps(h: int, w: int, kernel: int, stride: int, padding: str) -> tuple[np.ndarray, int, int]:
+    """(kernel*kernel, h*w, out_h*out_w) 0/1: tap t of output p reads input q; and out_h, out_w."""
+    out_h, out_w, (pad_h, _), (pad_w, _) = _same_or_valid(h, w, kernel, stride, padding)
+    taps = np.zeros((kernel * kernel, h * w, out_h * out_w), np.float32)
+    for i, j, ki, kj in itertools.product(range(out_h), range(out_w), range(kernel), range(kernel)):
+        r, c = i * stride + ki - pad_h, j * stride + kj - pad_w
+        if 0 <= r < h and 0 <= c < w:
+            taps[ki * kernel + kj, r * w + c, i * out_w + j] = 1.0
+    return taps, out_h, out_w
+
+
+def dense_conv(x: jnp.ndarray, kernel: jnp.ndarray, stride: int, padding: str) -> jnp.ndarray:
+    """The convolution of (..., H, W, C) x with a (k, k, C, F) kernel as one dense map from the
+    H*W*C inputs to the H'*W'*F outputs. Where H*W < k*k, most of a patch is padding: on EC's
+    2x2 maps a 3x3 SAME patch holds 4 of its 9 taps, and the dense map multiplies 4/9 as much."""
+    h, w, c = x.shape[-3:]
+    taps, out_h, out_w = _taps(h, w, kernel.shape[0], stride, padding)
+    dense = jnp.einsum("tqp,tcf->qcpf", taps, kernel.reshape(-1, c, kernel.shape[-1]))
+    y = x.reshape(x.shape[:-3] + (h * w * c,)) @ dense.reshape(h * w * c, -1)
+    return y.reshape(x.shape[:-3] + (out_h, out_w, kernel.shape[-1]))
+
+
 class PatchConv(nn.Module):
     """A square-kernel convolution as im2col + matmul; drop-in for ``nn.Conv`` on (..., H, W, C).
 
@@ -164,6 +188,8 @@ class PatchConv(nn.Module):
         kernel = self.param("kernel", drawn_as_matrix(self.kernel_init), (self.kernel, self.kernel, c_in, self.features))
         bias = self.param("bias", self.bias_init, (self.features,))
         weights = kernel.reshape(-1, self.features)  # rows ordered (ki, kj, c)
+        if self.layout == "NHWC" and x.shape[-3] * x.shape[-2] < self.kernel * self.kernel:
+            return dense_conv(x, kernel, self.stride, self.padding) + bias
         if self.layout == "NHWC":
             return extract_patches(x, self.kernel, self.stride, self.padding) @ weights + bias
         patches = extract_patches_chwn(x, self.kernel, self.stride, self.padding)
