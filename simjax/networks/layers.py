@@ -170,7 +170,8 @@ class PatchConv(nn.Module):
     ``conv_stack`` runs in that layout, where the patches stack whole batch rows and the matmul
     is kernel^T @ patches, one (F, K) by (K, H'*W'*batch) product. In (..., H, W, C) the patches
     are C-float pieces, which XLA:CPU concatenates (and scatters back in the gradient) slowly
-    when C is small."""
+    when C is small. In NHWC a map smaller than the kernel (H*W < k*k) is convolved as one dense
+    map (``dense_conv``), which skips the patches' padding."""
 
     features: int
     kernel: int = 3
