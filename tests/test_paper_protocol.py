@@ -193,6 +193,15 @@ def test_figure11_and_the_tables_write_csv_markdown_and_png(tmp_path):
     assert "| 25k / 25k | 25k [25k, 25k] | 2/2 |" in table2  # L = 3 does at its first row of 100 episodes
 
 
+def test_an_empty_ec_cell_asks_for_the_pretraining_passes_the_tables_ec_runs_used():
+    run = lambda c: protocol.Point(Path("r"), {}, SIM | {"total_steps": 4_000_000, "num_seeds": 3} | c, {}, {})
+    ec3 = run({"algo": "ec", "total_steps": 4_600_000, "ec_pretrain_epochs": 3})
+    command = tables.missing_command("maze-dense", "ec", [run({}), run({}), ec3])
+    assert "--total-steps 4600000 --num-seeds 3 --ec-pretrain-epochs 3 --out" in command
+    assert "--ec-pretrain-epochs" not in tables.missing_command("maze-dense", "ec", [run({}), run({})])
+    assert "--ec-pretrain-epochs" not in tables.missing_command("maze-dense", "sim", [run({}), ec3])
+
+
 def test_collect_inserts_the_section_after_the_first_heading_then_replaces_only_it(tmp_path):
     (tmp_path / "results" / "paper-x").mkdir(parents=True)
     (tmp_path / "results" / "paper-x" / "x.md").write_text("# Table X\n\n| a |\n|---|\n| 0.5 |\n\n![x](x.png)\n")

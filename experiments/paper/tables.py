@@ -78,15 +78,20 @@ def cells(points) -> dict:
 
 
 def missing_command(env: str, algo: str, points) -> str:
-    """A command for an empty cell, with the budget and seeds most of the table's runs have."""
-    common = lambda key: Counter(p.config[key] for p in points).most_common(1)[0][0] if points else key.upper()
-    budget = common("total_steps")
-    if algo == "ec" and isinstance(budget, int):  # EC's pretraining steps count on top of the policy's
+    """A command for an empty cell, with the budget and seeds most of the table's runs have (and, for
+    EC, the pretraining passes most of the table's EC runs have, where they are not the default)."""
+    common = lambda key, ps=points: Counter(p.config[key] for p in ps).most_common(1)[0][0] if ps else key.upper()
+    budget, extra = common("total_steps"), ""
+    if algo == "ec":
         from simjax.agents.config import TrainConfig
 
-        budget += TrainConfig().ec_pretrain_steps
+        if isinstance(budget, int):  # EC's pretraining steps count on top of the policy's
+            budget += TrainConfig().ec_pretrain_steps
+        ec_runs = [p for p in points if p.config.get("algo") == "ec" and "ec_pretrain_epochs" in p.config]
+        if ec_runs and (epochs := common("ec_pretrain_epochs", ec_runs)) != TrainConfig().ec_pretrain_epochs:
+            extra = f" --ec-pretrain-epochs {epochs}"
     return (f"python -m simjax.train --env {env} --algo {algo} --total-steps {budget} "
-            f"--num-seeds {common('num_seeds')} --out experiments/results/table1/{env}-{algo}")
+            f"--num-seeds {common('num_seeds')}{extra} --out experiments/results/table1/{env}-{algo}")
 
 
 def build(points, out_dir: Path) -> list[Path]:
