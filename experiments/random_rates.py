@@ -1,11 +1,13 @@
 """The uniform random policy's success on maze-dense in simjax and in real ViZDoom: a check of
 the two worlds that involves no learning (starts, motion, the goal's touch rule, the timeout).
 
-    python experiments/random_rates.py [SIMJAX_EPISODES] [VIZDOOM_EPISODES]
+    python experiments/random_rates.py [SIMJAX_EPISODES] [VIZDOOM_EPISODES] [--task TASK]
 
-Writes experiments/results/vizdoom-fidelity/random-policy.json."""
+Writes experiments/results/vizdoom-fidelity/random-policy.json. With ``--task`` another
+MyWayHome task is measured in simjax only (the ViZDoom reference spawns as maze-dense does),
+written to random-policy-TASK.json: the baseline a trained policy's success is set against."""
+import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -16,9 +18,18 @@ import numpy as np
 from simjax.envs import make  # noqa: E402
 from simjax.envs.doom import vizdoom_ref  # noqa: E402
 
-n_sim = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
-n_viz = int(sys.argv[2]) if len(sys.argv) > 2 else 600
-env = make("maze-dense")
+parser = argparse.ArgumentParser()
+parser.add_argument("n_sim", nargs="?", type=int, default=2000)
+parser.add_argument("n_viz", nargs="?", type=int, default=600)
+parser.add_argument("--task", default="maze-dense")
+args = parser.parse_args()
+n_sim, n_viz, task = args.n_sim, args.n_viz, args.task
+if n_sim < 1 or n_viz < 0:
+    parser.error("SIMJAX_EPISODES must be positive and VIZDOOM_EPISODES not negative")
+if task != "maze-dense" and n_viz:
+    parser.error(f"the ViZDoom reference runs maze-dense only; give VIZDOOM_EPISODES 0 for {task}")
+env = make(task)
+CHUNK = 1000  # episodes per compiled batch: bounds the memory of the vmapped frames
 def one(key):
     k0, k1 = jax.random.split(key)
     s = env.reset(k0)
@@ -30,10 +41,21 @@ def one(key):
         return (s, done | first, jnp.where(first, s.metrics["episode_success"], succ)), None
     (s, done, succ), _ = jax.lax.scan(body, (s, jnp.bool_(False), jnp.float32(0)), acts)
     return succ
-succ = np.asarray(jax.jit(jax.vmap(one))(jax.random.split(jax.random.PRNGKey(123), n_sim)))
-print("simjax random", succ.mean(), n_sim, flush=True)
+batch = jax.jit(jax.vmap(one))
+keys = jax.random.split(jax.random.PRNGKey(123), n_sim)
+succ = np.concatenate([np.asarray(batch(keys[i:i + CHUNK])) for i in range(0, n_sim, CHUNK)])
+print("simjax random", task, succ.mean(), f"({int(succ.sum())} of {n_sim})", flush=True)
 rng = np.random.default_rng(7)
 wins = 0
+if task != "maze-dense":
+    out = Path(__file__).resolve().parent / "results" / "vizdoom-fidelity" / f"random-policy-{task}.json"
+    out.write_text(json.dumps({
+        "task": task, "simjax": {"episodes": n_sim, "successes": int(succ.sum()),
+                                 "success_ratio": float(succ.mean())},
+        "command": f"python experiments/random_rates.py {n_sim} 0 --task {task}",
+        "date": time.strftime("%Y-%m-%d"),
+    }, indent=2) + "\n")
+    raise SystemExit(0)
 with vizdoom_ref.MyWayHome(seed=5, depth=False) as g:
     for i in range(n_viz):
         g.new_episode(seed=1000 + i)
