@@ -107,6 +107,22 @@ def test_bootstrap_interval_contains_the_mean_is_fixed_and_degenerate_for_identi
     assert low <= 2e5 and high == math.inf
 
 
+def test_steps_ratio_is_of_medians_and_bounded_or_undefined_where_a_method_did_not_reach():
+    inf = math.inf
+    both = protocol.steps_ratio({0: 1e6, 1: 2e6, 2: 3e6}, {0: 4e6, 1: 5e6, 2: 6e6}, (4_000_000, 8_000_000))
+    assert both.bound == "" and both.value == pytest.approx(2e6 / 5e6)
+    assert 1e6 / 6e6 <= both.interval[0] < both.value < both.interval[1] <= 3e6 / 4e6
+    one_each = protocol.steps_ratio({0: 1e6}, {0: 4e6}, (2_000_000, 8_000_000))
+    assert one_each.value == 0.25 and one_each.interval == (0.25, 0.25)
+    # the denominator's median never reached: the ratio is below the one with its steps trained
+    below = protocol.steps_ratio({0: 1e6, 1: 2e6, 2: 3e6}, {0: inf, 1: inf, 2: 5e6}, (4_000_000, 8_000_000))
+    assert below.bound == "<" and below.value == 2e6 / 8e6 and below.interval[0] == 0.0
+    above = protocol.steps_ratio({0: inf, 1: inf, 2: 1e6}, {0: 2e6, 1: 2e6, 2: 2e6}, (4_000_000, 8_000_000))
+    assert above.bound == ">" and above.value == 4e6 / 2e6 and above.interval[1] == inf
+    neither = protocol.steps_ratio({0: inf, 1: inf}, {0: inf, 1: math.nan}, (4_000_000, 4_000_000))
+    assert math.isnan(neither.value) and neither.interval == (0.0, inf)  # could be any ratio
+
+
 def test_across_seeds_reports_each_seed_and_ignores_seeds_without_episodes():
     summary = protocol.across_seeds({2: 1.0, 0: 0.5, 1: math.nan})
     assert summary.seeds == (0, 1, 2) and summary.values[0] == 0.5 and math.isnan(summary.values[1])
@@ -191,6 +207,8 @@ def test_figure11_and_the_tables_write_csv_markdown_and_png(tmp_path):
     table2 = (tmp_path / "results" / "paper-table2" / "table2.md").read_text()
     assert "| >75k / >75k | >75k [>75k, >75k] | 0/2 |" in table2  # L = 1 never reaches 0.9
     assert "| 25k / 25k | 25k [25k, 25k] | 2/2 |" in table2  # L = 3 does at its first row of 100 episodes
+    assert "| maze-very-sparse | no run | no run |" in table2  # SIM : RND and SIM : ICM need both cells
+    assert "SIM : RND = 0.40" in table2  # the paper's 1.82m / 4.51m beside ours
 
 
 def test_an_empty_ec_cell_asks_for_the_pretraining_passes_the_tables_ec_runs_used():

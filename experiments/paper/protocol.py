@@ -185,6 +185,50 @@ def across_seeds(values: dict[int, float], statistic: str = "mean") -> SeedSumma
     return SeedSummary(seeds, tuple(values[s] for s in seeds), mean, median, bootstrap_interval(kept, statistic), statistic)
 
 
+@dataclasses.dataclass(frozen=True)
+class StepsRatio:
+    """``numerator``'s median steps to the threshold over ``denominator``'s (the paper's
+    SIM : RND is 1.82 / 4.51). ``value`` is NaN when neither median is reached; ``bound`` is then
+    "", and where only one is reached the ratio is beyond the steps the other trained:
+    ``bound`` "<" (or ">") and ``value`` the ratio with the unreached median set to its steps
+    trained. ``interval``: percentile bootstrap, each method's seeds resampled on their own; a
+    resample where neither median is reached could be any ratio, so it counts as 0 at the low
+    end and +inf at the high end."""
+
+    value: float
+    bound: str
+    interval: tuple[float, float]
+
+
+def steps_ratio(numerator: dict[int, float], denominator: dict[int, float], trained: tuple[int, int],
+                resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED, confidence: float = CONFIDENCE) -> StepsRatio:
+    """Ratio of medians of steps to the threshold (+inf = not reached) of two methods' seeds;
+    ``trained`` is each method's steps trained per seed (the fewest of its seeds)."""
+    a = np.asarray([v for v in numerator.values() if not math.isnan(v)], dtype=np.float64)
+    b = np.asarray([v for v in denominator.values() if not math.isnan(v)], dtype=np.float64)
+    if a.size == 0 or b.size == 0:
+        return StepsRatio(math.nan, "", (math.nan, math.nan))
+    ma, mb = float(np.median(a)), float(np.median(b))
+    if math.isinf(ma) and math.isinf(mb):
+        value, bound = math.nan, ""
+    elif math.isinf(mb):
+        value, bound = ma / trained[1], "<"
+    elif math.isinf(ma):
+        value, bound = trained[0] / mb, ">"
+    else:
+        value, bound = ma / mb, ""
+    rng = np.random.default_rng(seed)
+    ra = np.median(a[rng.integers(0, a.size, size=(resamples, a.size))], axis=1)
+    rb = np.median(b[rng.integers(0, b.size, size=(resamples, b.size))], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = ra / rb  # inf / finite = inf, finite / inf = 0, inf / inf = NaN
+    unknown = np.isnan(ratio)
+    tail = (1.0 - confidence) / 2
+    low = np.quantile(np.where(unknown, 0.0, ratio), tail, method="inverted_cdf")
+    high = np.quantile(np.where(unknown, np.inf, ratio), 1.0 - tail, method="inverted_cdf")
+    return StepsRatio(value, bound, (float(low), float(high)))
+
+
 # -- curves ---------------------------------------------------------------------------------------
 
 

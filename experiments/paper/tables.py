@@ -23,7 +23,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import matplotlib.pyplot as plt  # noqa: E402
-from protocol import PAPER_ALGO, THRESHOLD  # noqa: E402
+from protocol import PAPER_ALGO, THRESHOLD, steps_ratio  # noqa: E402
 from report import (  # noqa: E402
     RESULTS,
     announce,
@@ -64,6 +64,10 @@ PAPER_TABLE2 = {
     "maze-sparse": {"a2c": ">10m", "icm": "6.01m*", "rnd": "4.51m*", "sim": "1.82m*", "ec": "6.45m"},
     "maze-very-sparse": {"a2c": ">10m", "icm": "6.01m*", "rnd": "4.51m*", "sim": "1.82m*", "ec": ">10m"},
 }
+# Table 2's ratios the paper's text draws (SIM converges in about 0.40 of RND's steps and 0.30 of
+# ICM's): ours per setting, of median steps to the threshold, numerator first.
+RATIOS = (("sim", "rnd"), ("sim", "icm"))
+PAPER_RATIOS = {("sim", "rnd"): 1.82 / 4.51, ("sim", "icm"): 1.82 / 6.01}
 PAPER_TABLE2_NOTE = ("*: the paper's text gives ICM, RND and SIM one value each, not one per setting (appendix B.4 "
                      "measures \"the average convergence time for each algorithm across the ViZDoom tasks\"); its "
                      "\"convergence standard\" is not defined, ours is a success ratio >= 0.9 over the last >= 100 episodes.")
@@ -99,6 +103,7 @@ def build(points, out_dir: Path) -> list[Path]:
     used = [p for key, ps in by_cell.items() if key[0] in ENVS and key[1] in METHODS for p in ps]
     others = [p for key, ps in by_cell.items() if not (key[0] in ENVS and key[1] in METHODS) for p in ps]
     rows1, rows2, csv1, csv2, missing = [], [], [], [], []
+    summaries: dict = {}
     for env in ENVS:
         for algo in METHODS:
             paper1, paper2 = PAPER_TABLE1[env][algo], PAPER_TABLE2[env][algo]
@@ -114,6 +119,7 @@ def build(points, out_dir: Path) -> list[Path]:
                 continue
             for p in found:
                 s = summarize(p)
+                summaries.setdefault((env, algo), []).append(s)
                 head = [env, PAPER_ALGO[algo], f"`{p.name}`", str(len(p.seeds)), f"{p.trained:,} / {p.budget:,}"]
                 rows1.append(head + final_cells(s) + [paper1])
                 rows2.append(head + steps_cells(s) + [paper2])
@@ -135,19 +141,57 @@ def build(points, out_dir: Path) -> list[Path]:
             "counts up to >10m steps).", "", *notes, "", "![table1](table1.png)", "", *inputs]
     md2 = header_markdown(f"Table 2: agent steps to a success ratio of {THRESHOLD}", used, ("steps", "seeds")) + markdown_table(
         head + [f"steps to {THRESHOLD} per seed", "median [95%]", "reached", "paper (Table 2)"], rows2, numeric=(3,))
-    md2 += ["", PAPER_TABLE2_NOTE, "", *notes, "", "![table2](table2.png)", "", *inputs]
+    ratio_rows, ratio_csv = ratios(summaries)
+    md2 += ["", PAPER_TABLE2_NOTE, "", *RATIOS_INTRO, "", *markdown_table(
+        ["setting", *(f"{PAPER_ALGO[a]} : {PAPER_ALGO[b]}" for a, b in RATIOS)], ratio_rows), "",
+        *notes, "", "![table2](table2.png)", "", *inputs]
 
     paths = [dir1 / "table1.md", dir1 / "table1.csv", dir1 / "table1.png", dir2 / "table2.md", dir2 / "table2.csv",
-             dir2 / "table2.png"]
+             dir2 / "table2.png", dir2 / "table2-ratios.csv"]
     paths[0].write_text("\n".join(md1))
     write_csv(paths[1], csv1)
     draw_table1(by_cell, paths[2])
     paths[3].write_text("\n".join(md2))
     write_csv(paths[4], csv2)
     draw_table2(by_cell, paths[5])
+    write_csv(paths[6], ratio_csv)
     print_commands(used)
     announce(*paths)
     return paths
+
+
+RATIOS_INTRO = [f"Ratios of median agent steps to {THRESHOLD} (seeds that did not reach count as +inf), [95%] = "
+                "percentile bootstrap, each method's seeds resampled on their own (a resample where neither median "
+                "reaches could be any ratio: it counts as 0 at the low end and +inf at the high end); `<` / `>`: "
+                "one method's median did not reach, so the ratio is beyond the one with its steps trained in its "
+                "place; `neither reached`: no ratio. Paper: "
+                + ", ".join(f"{PAPER_ALGO[a]} : {PAPER_ALGO[b]} = {PAPER_RATIOS[a, b]:.2f}" for a, b in RATIOS)
+                + " (its Table 2's one value per method)."]
+
+
+def fmt_ratio_value(x: float) -> str:
+    return "inf" if math.isinf(x) else f"{x:.2f}"
+
+
+def ratios(summaries: dict) -> tuple[list[list[str]], list[dict]]:
+    """Table 2's SIM : RND and SIM : ICM per setting, for settings with one run in each cell."""
+    rows, csv_rows = [], []
+    for env in ENVS:
+        row = [env]
+        for a, b in RATIOS:
+            sa, sb = summaries.get((env, a), []), summaries.get((env, b), [])
+            if len(sa) != 1 or len(sb) != 1:
+                row.append("no run" if not sa or not sb else "several runs in a cell")
+                continue
+            per_seed = [dict(zip(s.steps_summary.seeds, s.steps_summary.values)) for s in (sa[0], sb[0])]
+            r = steps_ratio(*per_seed, (sa[0].point.trained, sb[0].point.trained))
+            lo, hi = r.interval
+            shown = "neither reached" if math.isnan(r.value) else f"{r.bound}{fmt_ratio_value(r.value)}"
+            row.append(f"{shown} [{fmt_ratio_value(lo)}, {fmt_ratio_value(hi)}]")
+            csv_rows.append({"env": env, "ratio": f"{a}:{b}", "value": r.value, "bound": r.bound, "low": lo,
+                             "high": hi, "paper": PAPER_RATIOS[a, b]})
+        rows.append(row)
+    return rows, csv_rows
 
 
 def draw_table1(by_cell: dict, path: Path) -> None:
