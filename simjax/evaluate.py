@@ -16,7 +16,10 @@ and one of the MyWayHome tasks. ``simjax`` plays all episodes at once (``jax.vma
 
 Prints a table (success ratio with its 95% Wilson interval, mean episode length) and writes
 ``RUN/evaluate-<backend>.json`` (``-seedK`` added for runs of several seeds) with the numbers,
-the command, the date, the versions and the run's step count at its checkpoint.
+the command, the date, the versions and the run's step count at its checkpoint. On MyWayHome
+it also says where the episodes end (each one's position before its last step): their mean
+distance from the goal and how many end nearest each of the map's 17 spawn spots, so that a
+policy that never succeeds can still be compared across the two backends.
 """
 
 from __future__ import annotations
@@ -131,8 +134,8 @@ def simjax_rollout(env, network, act, num_lanes: int, steps: int, record: int):
     """A jittable ``(params, key, uniform) -> (done, success, length (T, N), views, xy)``: ``N``
     lanes of ``env`` for ``steps`` steps (``envs.episodes.rollout``; the env auto-resets),
     acting with ``act`` or, where ``uniform``, uniformly at random; one compiled function serves
-    both policies. ``views`` (T, record, H, W, C) and ``xy`` (T, record, 2) are the first
-    ``record`` lanes' frames and positions before each step."""
+    both policies. ``views`` (T, record, H, W, C) are the first ``record`` lanes' frames and
+    ``xy`` (T, N, 2) every lane's position, before each step."""
     import jax
     import jax.numpy as jnp
 
@@ -141,7 +144,7 @@ def simjax_rollout(env, network, act, num_lanes: int, steps: int, record: int):
     def keep(state, actions, nxt):
         m = nxt.metrics
         return (m["episode_done"] > 0, m["episode_success"] > 0, m["episode_length"], state.obs[:record],
-                state.pipeline_state.pose.pos[:record])
+                state.pipeline_state.pose.pos)
 
     def play(params, key, uniform):
         k_reset, k_act = jax.random.split(key)
@@ -167,11 +170,13 @@ def first_episodes(done, success, length, steps: int):
 
 
 def simjax_episodes(rollout, params, key, uniform: bool, n: int, steps: int, record: int):
-    """(success (n,), length (n,), [(views, xy) of the first ``record`` episodes])."""
+    """(success (n,), length (n,), [(views, xy) of the first ``record`` episodes], ends (n, 2):
+    where each episode was before its last step)."""
     done, success, length, views, xy = (np.asarray(a) for a in rollout(params, key, uniform))
     success, length = first_episodes(done, success, length, steps)
     success, length = success[:n], length[:n]
-    return success, length, [(views[:length[i], i], xy[:length[i], i]) for i in range(min(record, n))]
+    ends = xy[length - 1, np.arange(n)]
+    return success, length, [(views[:length[i], i], xy[:length[i], i]) for i in range(min(record, n))], ends
 
 
 # -- ViZDoom -----------------------------------------------------------------------------------
@@ -182,24 +187,26 @@ def vizdoom_episodes(game, start, choose, seeds, steps: int, record: int, say=No
     ``choose(i)`` gives episode i's actor, ``42x42 frame -> action``. Returns as ``simjax_episodes``."""
     from simjax.envs.doom import vizdoom_ref
 
-    success, length, recorded = [], [], []
+    success, length, recorded, ends = [], [], [], []
     for i, seed in enumerate(seeds):
         game.new_episode(start=start, seed=int(seed))
         actor, views, xy = choose(i), [], []
         for t in range(steps):  # noqa: B007 (t, read after the loop, is the episode's last step)
             view = vizdoom_ref.resize42(game.frame())
+            here = game.pose()[:2]
             if i < record:
                 views.append(view)
-                xy.append(game.pose()[:2])
+                xy.append(here)
             if game.step(actor(view))[1]:
                 break
         success.append(game.succeeded)
         length.append(t + 1)
+        ends.append(here)
         if i < record:
             recorded.append((np.stack(views), np.asarray(xy)))
         if say and (i + 1) % max(1, len(seeds) // 10) == 0:
             say(f"{i + 1}/{len(seeds)} episodes, success {np.mean(success):.3f}")
-    return np.asarray(success, bool), np.asarray(length, np.int64), recorded
+    return np.asarray(success, bool), np.asarray(length, np.int64), recorded, np.asarray(ends, np.float64).reshape(-1, 2)
 
 
 def policy_actor(act, network, params, key, steps: int):
@@ -241,11 +248,27 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return (0.0 if successes == 0 else centre - half), (1.0 if successes == n else centre + half)
 
 
-def summarize(success, length) -> dict:
+def where_they_end(ends, goal, spots: dict) -> dict:
+    """Where episodes end (``ends`` (n, 2), the position before each one's last step): the mean
+    distance from ``goal`` and, of ``spots`` ({name: (x, y)}, MyWayHome's spawn spots, one a room
+    or corridor), how many end nearest each, most first."""
+    ends = np.asarray(ends, np.float64).reshape(-1, 2)
+    names, xy = list(spots), np.asarray(list(spots.values()), np.float64)
+    nearest = np.argmin(np.linalg.norm(ends[:, None] - xy[None], axis=-1), axis=1)
+    counts = np.bincount(nearest, minlength=len(names))
+    order = sorted((i for i in range(len(names)) if counts[i]), key=lambda i: (-counts[i], i))
+    return {"goal_distance_mean": float(np.mean(np.linalg.norm(ends - np.asarray(goal, np.float64), axis=1))),
+            "nearest_spot": {str(names[i]): int(counts[i]) for i in order}}
+
+
+def summarize(success, length, ends=None) -> dict:
+    """Success with its Wilson interval and mean length; ``ends`` (``where_they_end``'s dict)
+    added where given."""
     n, k = len(success), int(np.sum(success))
     lo, hi = wilson(k, n)
-    return {"episodes": n, "successes": k, "success_ratio": k / n, "success_95": [lo, hi],
-            "mean_episode_length": float(np.mean(length))}
+    out = {"episodes": n, "successes": k, "success_ratio": k / n, "success_95": [lo, hi],
+           "mean_episode_length": float(np.mean(length))}
+    return out if ends is None else out | {"ends": ends}
 
 
 def table(results: dict) -> str:
@@ -255,6 +278,11 @@ def table(results: dict) -> str:
             lo, hi = r["success_95"]
             lines.append(f"{name:8} {r['success_ratio']:8.3f}  [{lo:.3f}, {hi:.3f}]  "
                          f"{r['mean_episode_length']:11.1f}  {r['episodes']:8d}")
+    for name, r in results.items():
+        if r is not None and r.get("ends"):
+            spots = ", ".join(f"{s}: {c}" for s, c in list(r["ends"]["nearest_spot"].items())[:5])
+            lines.append(f"{name} ends {r['ends']['goal_distance_mean']:.0f} units from the goal on average; "
+                         f"nearest spawn spot (most first) {spots}")
     return "\n".join(lines)
 
 
@@ -320,12 +348,19 @@ def main(argv=None) -> int:
 
     import jax
 
+    from simjax.envs import is_mywayhome
+    from simjax.envs.doom import mywayhome_map
+
     runtime.enable_compilation_cache()
     restored = restore(args.run, env)
     network, params = restored.network, restored.policy()
     act = policy_step(network, args.greedy)
     key = jax.random.PRNGKey(args.eval_seed)
     indices = range(config.num_seeds) if args.all_seeds else [args.seed_index]
+    ended = lambda ends: None
+    if is_mywayhome(config.env):
+        goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
+        ended = lambda ends: where_they_end(ends, goal, mywayhome_map.SPAWN_SPOTS)
     if args.backend == "simjax":
         rollout = jax.jit(simjax_rollout(env, network, act, max(n, n_random), steps, record))
         run_policy = lambda p: simjax_episodes(rollout, p, key, False, n, steps, record)
@@ -347,12 +382,13 @@ def main(argv=None) -> int:
         random = None
         if n_random:
             say(f"random policy: {n_random} episodes on {args.backend}")
-            random = summarize(*run_random(first)[:2])
+            success, length, _, ends = run_random(first)
+            random = summarize(success, length, ended(ends))
         for k in indices:
             seed_params = jax.tree.map(lambda x, k=k: x[k], params)
             say(f"seed {restored.seeds[k]}: {n} episodes on {args.backend}")
-            success, length, recorded = run_policy(seed_params)
-            results = {"policy": summarize(success, length), "random": random}
+            success, length, recorded, ends = run_policy(seed_params)
+            results = {"policy": summarize(success, length, ended(ends)), "random": random}
             tag = f"-seed{k}" if config.num_seeds > 1 else ""
             video = None
             if args.video:

@@ -40,6 +40,8 @@ def _check(record, backend, max_steps, episodes):
         lo, hi = r["success_95"]
         assert 0.0 <= lo <= r["success_ratio"] <= hi <= 1.0
         assert 1 <= r["mean_episode_length"] <= max_steps
+        assert sum(r["ends"]["nearest_spot"].values()) == episodes  # every episode ends somewhere
+        assert 0.0 <= r["ends"]["goal_distance_mean"] < 1500.0  # the map spans about 1,100 units
 
 
 def test_simjax_backend_all_seeds_and_determinism(run_dir, capsys):
@@ -106,6 +108,30 @@ def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path,
     assert f"{tiny / 'checkpoint.msgpack'} is damaged" in capsys.readouterr().err
 
 
+def test_where_they_end_counts_nearest_spots_and_the_goal_distance():
+    spots = {13: (0.0, 0.0), 24: (100.0, 0.0), 26: (0.0, 300.0)}
+    ends = np.array([[1.0, 2.0], [-3.0, 0.0], [95.0, 1.0], [0.0, 290.0], [2.0, -1.0]])
+    out = evaluate.where_they_end(ends, (0.0, 400.0), spots)
+    assert out["nearest_spot"] == {"13": 3, "24": 1, "26": 1}
+    assert list(out["nearest_spot"]) == ["13", "24", "26"]  # most first, then by spot
+    expected = np.mean([np.hypot(*(e - (0.0, 400.0))) for e in ends])
+    assert math.isclose(out["goal_distance_mean"], expected, rel_tol=1e-12)
+
+
+def test_simjax_episodes_end_before_each_lanes_last_step_of_its_first_episode():
+    """3 steps x 3 lanes: lane 0 ends at step 1, lane 1 at step 2 (then resets), lane 2 never."""
+    done = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], bool)
+    success = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0]], bool)
+    length = np.array([[1, 1, 1], [2, 2, 2], [9, 3, 3]], np.int32)
+    xy = np.arange(3 * 3 * 2, dtype=np.float32).reshape(3, 3, 2)  # (T, N, 2) before each step
+    views = np.zeros((3, 1, 42, 42, 3), np.uint8)
+    got_success, got_length, recorded, ends = evaluate.simjax_episodes(
+        lambda *a: (done, success, length, views, xy), None, None, False, 3, 3, 1)
+    assert got_success.tolist() == [True, False, False] and got_length.tolist() == [2, 3, 3]
+    np.testing.assert_array_equal(ends, [xy[1, 0], xy[2, 1], xy[2, 2]])
+    np.testing.assert_array_equal(recorded[0][1], xy[:2, 0])
+
+
 def test_wilson_interval():
     assert evaluate.wilson(0, 10)[0] == 0.0 and evaluate.wilson(10, 10)[1] == 1.0
     lo, hi = evaluate.wilson(50, 100)
@@ -120,9 +146,12 @@ def test_the_policy_sees_in_vizdoom_what_simjax_draws_at_the_same_pose():
     def choose(i):
         return lambda view: seen.append((view, game.pose())) or 3
 
+    ends = []
     with vr.MyWayHome(seed=0, depth=False) as game:
         for start in (None, None, vr.TASK_STARTS["maze-sparse"]):
-            evaluate.vizdoom_episodes(game, start, choose, [len(seen)], steps=1, record=0)
+            ends.append(evaluate.vizdoom_episodes(game, start, choose, [len(seen)], steps=1, record=0)[3])
+    # an episode of one step ends where it stood before that step: where its frame was seen
+    np.testing.assert_array_equal(np.concatenate(ends), [pose[:2] for _, pose in seen])
     env = make("maze-dense")
     reset_to = jax.jit(env.reset_to)
     for view, (x, y, angle) in seen:
