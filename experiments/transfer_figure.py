@@ -33,7 +33,7 @@ def table(results: list[dict]) -> str:
             "|---|---:|---|---|---:|---:|"]
     for r in results:
         p, q = r["policy"], r["random"]
-        rows.append(f"| {r['backend']} | {r['seed_index']} | {p['success_ratio']:.3f} "
+        rows.append(f"| {r['backend']} | {r['seed']} | {p['success_ratio']:.3f} "
                     f"[{p['success_95'][0]:.3f}, {p['success_95'][1]:.3f}] | {q['success_ratio']:.3f} "
                     f"[{q['success_95'][0]:.3f}, {q['success_95'][1]:.3f}] | {p['mean_episode_length']:.0f} | "
                     f"{p['episodes']} / {q['episodes']} |")
@@ -51,7 +51,7 @@ def draw(results: list[dict], out: Path, title: str) -> None:
             ax.errorbar(x, s["success_ratio"], yerr=[[s["success_ratio"] - lo], [hi - s["success_ratio"]]],
                         color="black", capsize=3, linewidth=1)
     ax.set_xticks(np.arange(len(results)))
-    ax.set_xticklabels([f"{r['backend']}\nseed {r['seed_index']}" for r in results], fontsize=8)
+    ax.set_xticklabels([f"{r['backend']}\nseed {r['seed']}" for r in results], fontsize=8)
     ax.set_ylabel("success ratio (95% interval)")
     ax.set_ylim(0, 1)
     ax.set_title(title, fontsize=9)
@@ -66,7 +66,7 @@ def main():
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     results = load(args.run)
-    results.sort(key=lambda r: (r["backend"] != "simjax", r["seed_index"]))
+    results.sort(key=lambda r: (r["backend"] != "simjax", r["seed"]))
     r0 = results[0]
     title = f"{r0['env']} policy trained in simjax ({r0['env_steps']:,} steps), run in simjax and in ViZDoom"
     out = args.out or args.run / "transfer.png"
