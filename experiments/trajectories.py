@@ -23,6 +23,7 @@ import numpy as np
 from simjax.agents import sampling_policy
 from simjax.envs import is_mywayhome, rollout, uniform_policy
 from simjax.envs.doom import mywayhome_map
+from simjax.evaluate import where_they_end
 from simjax.runs import restore
 
 
@@ -58,12 +59,10 @@ def coverage(pos, alive, goal, square: float = 64.0):
     return np.asarray(squares), np.asarray(closest)
 
 
-def ends_near(pos, alive, spots: dict) -> dict:
-    """{spot: how many first episodes end nearest to it}, most first."""
-    ids, xy = list(spots), np.asarray(list(spots.values()))
-    last = [first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])]
-    nearest = [ids[int(np.argmin(np.linalg.norm(xy - p, axis=1)))] for p in last]
-    return dict(sorted(((s, nearest.count(s)) for s in set(nearest)), key=lambda kv: -kv[1]))
+def ends_near(pos, alive, goal, spots: dict) -> dict:
+    """{spot: how many first episodes end nearest to it}, most first (``simjax.evaluate``'s count)."""
+    last = np.stack([first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])])
+    return where_they_end(last, goal, spots)["nearest_spot"]
 
 
 def main(argv=None) -> int:
@@ -96,7 +95,7 @@ def main(argv=None) -> int:
               f"(max {squares.max()}), closest to goal {closest.mean():.0f} units (min {closest.min():.0f})")
         if spots is not None:
             print("    episodes end nearest spot: " + ", ".join(
-                f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), spots).items()))
+                f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), goal, spots).items()))
         if drawn is None and params is not None:
             drawn = (name, np.asarray(pos), np.asarray(alive))
     import matplotlib
