@@ -23,7 +23,7 @@ import numpy as np
 from simjax.agents import sampling_policy
 from simjax.envs import is_mywayhome, rollout, uniform_policy
 from simjax.envs.doom import mywayhome_map
-from simjax.evaluate import where_they_end
+from simjax.evaluate import nearest_spots
 from simjax.runs import restore
 
 
@@ -59,10 +59,9 @@ def coverage(pos, alive, goal, square: float = 64.0):
     return np.asarray(squares), np.asarray(closest)
 
 
-def ends_near(pos, alive, goal, spots: dict) -> dict:
-    """{spot: how many first episodes end nearest to it}, most first (``simjax.evaluate``'s count)."""
-    last = np.stack([first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])])
-    return where_they_end(last, goal, spots)["nearest_spot"]
+def ends_near(pos, alive, spots: dict) -> dict:
+    """{spot: how many first episodes end nearest to it}, most first."""
+    return nearest_spots(np.stack([first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])]), spots)
 
 
 def main(argv=None) -> int:
@@ -95,7 +94,7 @@ def main(argv=None) -> int:
               f"(max {squares.max()}), closest to goal {closest.mean():.0f} units (min {closest.min():.0f})")
         if spots is not None:
             print("    episodes end nearest spot: " + ", ".join(
-                f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), goal, spots).items()))
+                f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), spots).items()))
         if drawn is None and params is not None:
             drawn = (name, np.asarray(pos), np.asarray(alive))
     import matplotlib

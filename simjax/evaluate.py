@@ -248,17 +248,22 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return (0.0 if successes == 0 else centre - half), (1.0 if successes == n else centre + half)
 
 
-def where_they_end(ends, goal, spots: dict) -> dict:
-    """Where episodes end (``ends`` (n, 2), the position before each one's last step): the mean
-    distance from ``goal`` and, of ``spots`` ({name: (x, y)}, MyWayHome's spawn spots, one a room
-    or corridor), how many end nearest each, most first."""
+def nearest_spots(ends, spots: dict) -> dict:
+    """{spot name: how many of ``ends`` (n, 2) lie nearest to it}, most first, ties by ``spots``'
+    order ({name: (x, y)}, e.g. MyWayHome's spawn spots, one a room or corridor)."""
     ends = np.asarray(ends, np.float64).reshape(-1, 2)
     names, xy = list(spots), np.asarray(list(spots.values()), np.float64)
-    nearest = np.argmin(np.linalg.norm(ends[:, None] - xy[None], axis=-1), axis=1)
-    counts = np.bincount(nearest, minlength=len(names))
+    counts = np.bincount(np.argmin(np.linalg.norm(ends[:, None] - xy[None], axis=-1), axis=1), minlength=len(names))
     order = sorted((i for i in range(len(names)) if counts[i]), key=lambda i: (-counts[i], i))
+    return {str(names[i]): int(counts[i]) for i in order}
+
+
+def where_they_end(ends, goal, spots: dict) -> dict:
+    """Where episodes end (``ends`` (n, 2), the position before each one's last step): the mean
+    distance from ``goal`` and ``nearest_spots``."""
+    ends = np.asarray(ends, np.float64).reshape(-1, 2)
     return {"goal_distance_mean": float(np.mean(np.linalg.norm(ends - np.asarray(goal, np.float64), axis=1))),
-            "nearest_spot": {str(names[i]): int(counts[i]) for i in order}}
+            "nearest_spot": nearest_spots(ends, spots)}
 
 
 def summarize(success, length, ends=None) -> dict:
@@ -359,8 +364,7 @@ def main(argv=None) -> int:
     indices = range(config.num_seeds) if args.all_seeds else [args.seed_index]
     ended = lambda ends: None
     if is_mywayhome(config.env):
-        goal = np.asarray(env.layout.items.pos[np.asarray(env.layout.items.ends)][0])
-        ended = lambda ends: where_they_end(ends, goal, mywayhome_map.SPAWN_SPOTS)
+        ended = lambda ends: where_they_end(ends, mywayhome_map.GOAL_XY, mywayhome_map.SPAWN_SPOTS)
     if args.backend == "simjax":
         rollout = jax.jit(simjax_rollout(env, network, act, max(n, n_random), steps, record))
         run_policy = lambda p: simjax_episodes(rollout, p, key, False, n, steps, record)
