@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from simjax.task_names import current_record
+
 WINDOW_STEPS = 100_000  # final success: the last rows covering at least this many agent steps
 WINDOW_EPISODES = 100  # steps to 0.9 and curves: the most recent rows holding at least this many episodes
 THRESHOLD = 0.9
@@ -329,7 +331,7 @@ def read_points(folder: Path) -> list[Point]:
     order; an entry with no rows yet has no seeds; rows that match no entry form points of
     their own, in order of appearance)."""
     folder = Path(folder)
-    record = json.loads((folder / "config.json").read_text())
+    record = current_record(json.loads((folder / "config.json").read_text()))
     config = dict(record["config"])
     with open(folder / "metrics.csv", newline="") as f:
         rows = list(csv.reader(f))

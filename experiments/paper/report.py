@@ -172,7 +172,9 @@ def input_commands(folder: Path) -> list[str]:
     """The command(s) that made a run or sweep folder, from its config.json (and fork.json)."""
     import json
 
-    record = json.loads((folder / "config.json").read_text())
+    from simjax.task_names import current_record
+
+    record = current_record(json.loads((folder / "config.json").read_text()))
     config = record["config"]
     sweep = record.get("sweep") or {}
     if sweep:

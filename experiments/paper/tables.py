@@ -4,7 +4,7 @@ with the paper's own numbers beside ours.
 
     python experiments/paper/tables.py [RUN_OR_SWEEP_FOLDER ...] [--out-dir experiments/results]
 
-Default inputs: ``experiments/results/table1/*/`` (e.g. ``table1/maze-very-sparse-sim``);
+Default inputs: ``experiments/results/table1/*/`` (e.g. ``table1/maze-spot10-east-sim``);
 each run is placed in the table by its config's ``env`` and ``algo``, a cell without one is
 listed as missing with the command that would make it. Writes
 ``experiments/results/paper-table1/table1.{csv,md,png}`` and ``paper-table2/table2.{csv,md,png}``;

@@ -34,6 +34,7 @@ import threading
 from pathlib import Path
 
 from simjax.agents import TrainConfig, make_trainer
+from simjax.task_names import TASKS_AS_OF, current_record
 
 METRIC_COLUMNS = (
     "env_steps", "seed", "success_ratio", "mean_episode_length", "mean_extrinsic_return",
@@ -83,10 +84,11 @@ def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = Non
                  sweep: dict[str, list] | None = None) -> None:
     """config.json: every setting (and, from a training process, the package versions); for a
     sweep, the swept values and the grid of points (``config`` holds the first point's values,
-    with windows for the largest H and L)."""
+    with windows for the largest H and L); and the date of the task names it uses
+    (``simjax.task_names``)."""
     from simjax.runs.grid import grid_of
 
-    record = {"config": dataclasses.asdict(config)}
+    record = {"config": dataclasses.asdict(config), "tasks_as_of": TASKS_AS_OF}
     if sweep:
         record |= {"sweep": sweep, "grid": grid_of(sweep)}
     record |= {"versions": versions} if versions else {}
@@ -97,7 +99,7 @@ def _read_config(run_dir: Path) -> dict:
     path = Path(run_dir) / "config.json"
     if not path.exists():
         raise FileNotFoundError(f"{run_dir} is not a run folder (no config.json)")
-    return json.loads(path.read_text())
+    return current_record(json.loads(path.read_text()))
 
 
 # a config.json without one of these settings was trained with this value (the code's fixed
