@@ -66,3 +66,4 @@ for f in config.json metrics.csv curve.png trajectories.png trajectories.txt nov
     [ -s "$run/$f" ] && cp "$run/$f" "$OUT/"
 done
 say "done"
+tail -n 30 "$log"
