@@ -104,7 +104,7 @@ def _read_config(run_dir: Path) -> dict:
 
 # a config.json without one of these settings was trained with this value (the code's fixed
 # value when the config was written), whatever today's default is
-TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5}
+TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest"}  # precision: JAX's default, on CPUs float32
 
 
 def load_config(run_dir: Path) -> TrainConfig:

@@ -215,7 +215,17 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``);
     ``sweep``: field -> values, every combination trained side by side (``check_sweep`` made
     ``config`` from them); ``devices``: the devices to shard the members over (default: all).
-    Raises ``Diverged`` at the first row with a non-finite loss, gradient norm or parameter."""
+    Every program is traced at ``config.precision`` (``runtime.matmul_precision``), whatever
+    JAX's global setting. Raises ``Diverged`` at the first row with a non-finite loss, gradient
+    norm or parameter."""
+    from simjax import runtime
+
+    with runtime.matmul_precision(config.precision):
+        return _train(config, out, quiet, resume, tensorboard, sweep, devices)
+
+
+def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboard: bool, sweep: dict | None,
+           devices) -> Path:
     from simjax import plotting, runtime
     from simjax.agents import make_trainer, summarize
 
