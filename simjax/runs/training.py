@@ -61,15 +61,26 @@ class Diverged(RuntimeError):
     was written."""
 
 
-def non_finite(metrics: dict, params, names: list[str]) -> list[str]:
-    """What in one chunk's ``metrics`` and the ``params`` after it (leading axis: member) is NaN
-    or infinite, one line per member that has any: 'NAME: term value, ..., GROUP parameters'."""
+def finite_parameters(params) -> dict:
+    """{group: (members,) bool}, whether each member's parameters of the group are all finite;
+    jitted where the parameters live, so that a row fetches a few booleans, not the parameters."""
+    import jax.numpy as jnp
+
+    def finite(leaves):
+        return jnp.stack([jnp.isfinite(x).reshape(x.shape[0], -1).all(axis=1) for x in leaves]).all(axis=0)
+
+    return {group: finite(jax.tree.leaves(tree)) for group, tree in params.items() if jax.tree.leaves(tree)}
+
+
+def non_finite(metrics: dict, finite: dict, names: list[str]) -> list[str]:
+    """What in one chunk's ``metrics`` and the parameters after it (``finite_parameters``;
+    leading axis: member) is NaN or infinite, one line per member that has any:
+    'NAME: term value, ..., GROUP parameters'."""
     found = []
     for i, name in enumerate(names):
         bad = [f"{k} {float(np.asarray(metrics[k])[i]):.6g}" for k in FINITE_TERMS
                if k in metrics and not np.isfinite(np.asarray(metrics[k])[i])]
-        bad += [f"{group} parameters" for group, tree in params.items()
-                if not all(np.isfinite(np.asarray(leaf)[i]).all() for leaf in jax.tree.leaves(tree))]
+        bad += [f"{group} parameters" for group, ok in finite.items() if not np.asarray(ok)[i]]
         if bad:
             found.append(f"{name}: {', '.join(bad)}")
     return found
@@ -264,6 +275,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
 
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
     chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
+    finite = jax.jit(finite_parameters)
 
     total = config.step_offset + config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, len(batch))
@@ -299,7 +311,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
             metrics = jax.device_get(metrics)
             now = time.perf_counter()
             steps = done_steps + steps_per_chunk
-            bad = non_finite(metrics, jax.device_get(next_runner.params), names)
+            bad = non_finite(metrics, jax.device_get(finite(next_runner.params)), names)
             if bad:  # neither this row nor its runner is written: the checkpoint stays finite
                 raise Diverged(
                     f"training diverged in the updates up to {steps:,} agent steps per member: "
