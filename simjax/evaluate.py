@@ -346,6 +346,12 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     config, env, limit = check_args(parser, args)
+    with runtime.matmul_precision(config.precision):  # the policy acts at the precision it trained at
+        return play(args, argv, config, env, limit)
+
+
+def play(args, argv: list[str], config, env, limit: int) -> int:
+    """Evaluate as ``args`` (checked by ``check_args``) say; ``argv`` is recorded in the JSON."""
     steps = args.max_steps or limit
     n, n_random = args.episodes, args.episodes if args.random_episodes is None else args.random_episodes
     record = min(args.video_episodes, n) if args.video else 0

@@ -44,10 +44,15 @@ _FIELD_TYPES = {"int": whole_number, "float": float, "str": str, "bool": parse_b
 _FIELDS = tuple(f.name for f in dataclasses.fields(TrainConfig))
 
 
-def list_of(kind):
-    """A flag type for comma-separated values of ``kind``: '1,2,3' -> [1, 2, 3]."""
+def list_of(kind, choices=None):
+    """A flag type for comma-separated values of ``kind``: '1,2,3' -> [1, 2, 3]; each one of
+    ``choices`` where given."""
     def parse(text: str) -> list:
-        return [kind(part) for part in text.split(",") if part.strip()]
+        values = [kind(part) for part in text.split(",") if part.strip()]
+        bad = [v for v in values if choices is not None and v not in choices]
+        if bad:
+            raise argparse.ArgumentTypeError(f"invalid choice: {bad[0]!r} (choose from {', '.join(choices)})")
+        return values
 
     parse.__name__ = f"comma-separated {kind.__name__}"
     return parse
@@ -55,12 +60,14 @@ def list_of(kind):
 
 def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings", lists: bool = False) -> None:
     """``--env``, ``--algo``, ... : one flag per TrainConfig field, its default in its help.
-    With ``lists`` every flag takes comma-separated values (``simjax.sweep``)."""
+    With ``lists`` every flag takes comma-separated values (``simjax.sweep``). A field whose
+    metadata has "choices" takes only those."""
     group = parser.add_argument_group(title)
     for field in dataclasses.fields(TrainConfig):
         shown = "" if field.default is None else f" (default: {field.default})"
-        kind = _FIELD_TYPES[str(field.type)]
-        group.add_argument("--" + field.name.replace("_", "-"), type=list_of(kind) if lists else kind,
+        kind, choices = _FIELD_TYPES[str(field.type)], field.metadata.get("choices")
+        typed = {"type": list_of(kind, choices)} if lists else {"type": kind, "choices": choices}
+        group.add_argument("--" + field.name.replace("_", "-"), **typed,
                            default=argparse.SUPPRESS, help=field.metadata.get("help", "") + shown)
 
 

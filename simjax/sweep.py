@@ -20,7 +20,7 @@ from simjax import flags
 from simjax.novelty.settings import flag
 from simjax.runs import folder
 from simjax.runs.grid import check_sweep
-from simjax.train import new_run_folder, train
+from simjax.train import add_checkpoint_flag, new_run_folder, train
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None, help="run folder (default: runs/ENV-ALGO-sweep-TIME)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--tensorboard", action="store_true", help="also write TensorBoard event files")
+    add_checkpoint_flag(parser)
     return parser
 
 

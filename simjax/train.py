@@ -20,7 +20,7 @@ from pathlib import Path
 from simjax import flags
 from simjax.agents import TrainConfig, make_trainer
 from simjax.runs import Diverged, folder, run
-from simjax.runs.training import PRETRAIN_STATE, read_pretrain_state
+from simjax.runs.training import CHECKPOINT_EVERY, PRETRAIN_STATE, read_pretrain_state
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,7 +35,27 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write the metrics as TensorBoard event files in OUT/tensorboard (tensorboardX)")
     parser.add_argument("--resume", type=Path, default=None,
                         help="continue the run in this folder from its checkpoint (no run settings, no --out)")
+    add_checkpoint_flag(parser)
     return parser
+
+
+def seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds >= 0, got {text!r}")
+    return value
+
+
+def add_checkpoint_flag(parser: argparse.ArgumentParser) -> None:
+    """``--checkpoint-every``: how the command saves, not what the run is, so ``--resume`` takes it."""
+    parser.add_argument("--checkpoint-every", type=seconds, default=CHECKPOINT_EVERY, metavar="SECONDS",
+                        help="rewrite the checkpoint (every seed's whole state) after a row once this long has "
+                             "passed since the last; 0: after every row. The end, Ctrl-C and SIGTERM always "
+                             "write one; a kill -9 loses the rows since the last, which --resume trains again "
+                             f"(default: {CHECKPOINT_EVERY:.0f})")
 
 
 def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
@@ -115,7 +135,8 @@ def train(config: TrainConfig, out: Path, args: argparse.Namespace, sweep: dict 
     when the run diverged."""
     with stopped_like_ctrl_c() as got:
         try:
-            run(config, out, args.quiet, resume=resume, tensorboard=args.tensorboard, sweep=sweep)
+            run(config, out, args.quiet, resume=resume, tensorboard=args.tensorboard, sweep=sweep,
+                checkpoint_every=args.checkpoint_every)
         except Diverged as err:
             print(f"python -m simjax.train: error: {err}", file=sys.stderr)
             return 1

@@ -365,23 +365,49 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
 
 
 def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
+    """Stopped by Ctrl-C between checkpoints (it saves then), or killed with rows written after
+    its last checkpoint (they are dropped and trained again): resumed, it is the whole run."""
+    import shutil
+
+    from simjax.runs import training
+
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
-    runs.run(config, tmp_path / "whole", quiet=True)
+    written = []  # the steps of each checkpoint written
+    monkeypatch.setattr(training, "write_checkpoint", lambda out, r, steps, seeds: written.append(steps)
+                        or runs.write_checkpoint(out, r, steps, seeds))
     calls = []
 
-    def stop_after_first(self, *args):
+    def kill_after_second(self, *args):  # a copy of the folder as a kill -9 after the second row leaves it
         calls.append(args)
+        if len(calls) == 2:
+            shutil.copytree(tmp_path / "whole", tmp_path / "killed")
+
+    with monkeypatch.context() as m:
+        m.setattr(Progress, "update", kill_after_second)
+        runs.run(config, tmp_path / "whole", quiet=True, checkpoint_every=3600)
+    assert written == [0, 48]  # the start and the end: no interval passed between
+    assert runs.load_checkpoint(tmp_path / "killed")["env_steps"] == 0
+    assert len(list(csv.reader(open(tmp_path / "killed" / "metrics.csv")))) == 3  # header + 2 rows after it
+
+    def stop_after_first(self, *args):
         raise KeyboardInterrupt
 
+    written.clear()
     with monkeypatch.context() as m:
         m.setattr(Progress, "update", stop_after_first)
         runs.run(config, tmp_path / "parts", quiet=True)
+    assert written == [0, 16]  # the start, and the stop: the default interval had not passed
     assert len(list(csv.reader(open(tmp_path / "parts" / "metrics.csv")))) == 2  # header + 1 row
-    runs.run(runs.load_config(tmp_path / "parts"), tmp_path / "parts", quiet=True, resume=True)
+    written.clear()
+    runs.run(runs.load_config(tmp_path / "parts"), tmp_path / "parts", quiet=True, resume=True, checkpoint_every=0)
+    assert written == [16, 32, 48]  # on resuming, then after every row
+    runs.run(runs.load_config(tmp_path / "killed"), tmp_path / "killed", quiet=True, resume=True)
     same = [c for c in runs.METRIC_COLUMNS if c not in ("steps_per_s", "wall_s")]
-    rows = [list(csv.DictReader(open(tmp_path / d / "metrics.csv"))) for d in ("whole", "parts")]
-    assert len(rows[0]) == len(rows[1]) == 3
-    assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]]
+    rows = [list(csv.DictReader(open(tmp_path / d / "metrics.csv"))) for d in ("whole", "parts", "killed")]
+    assert [len(r) for r in rows] == [3, 3, 3]
+    assert [[r[c] for c in same] for r in rows[0]] == [[r[c] for c in same] for r in rows[1]] == [
+        [r[c] for c in same] for r in rows[2]]
+    chex.assert_trees_all_equal(*(runs.load_checkpoint(tmp_path / d)["runner"] for d in ("whole", "parts", "killed")))
 
 
 @pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY

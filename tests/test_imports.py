@@ -6,21 +6,25 @@ import sys
 
 MODULES = ("simjax", "simjax.envs", "simjax.agents", "simjax.novelty", "simjax.runs", "simjax.train",
            "simjax.fork", "simjax.evaluate", "simjax.plotting")
-REPORT = "import os, jax\nprint(os.environ.get('XLA_FLAGS'))\nprint(jax.config.read('jax_cpu_enable_async_dispatch'))\n"
+REPORT = ("import os, jax\nprint(os.environ.get('XLA_FLAGS'))\nprint(jax.config.read('jax_cpu_enable_async_dispatch'))\n"
+          "print(jax.config.jax_default_matmul_precision)\n")
 
 
 def _python(code: str, **env) -> list[str]:
-    """The stdout lines of ``code`` in a fresh interpreter, without this process's XLA flags."""
-    clean = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    """The stdout lines of ``code`` in a fresh interpreter, without this process's XLA flags and
+    matmul precision."""
+    clean = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_DEFAULT_MATMUL_PRECISION")}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
                          env={**clean, **env}, check=True)
     return out.stdout.splitlines()
 
 
 def test_importing_simjax_leaves_xla_flags_and_jax_config_alone():
+    """Nor the matmul precision: a run applies its own while it traces (``runtime.matmul_precision``)."""
     code = f"import importlib\nfor m in {MODULES!r}: importlib.import_module(m)\n" + REPORT
-    assert _python(code) == ["None", "True"]
-    assert _python(code, XLA_FLAGS="--xla_dump_to=/nowhere") == ["--xla_dump_to=/nowhere", "True"]
+    assert _python(code) == ["None", "True", "None"]
+    assert _python(code, XLA_FLAGS="--xla_dump_to=/nowhere", JAX_DEFAULT_MATMUL_PRECISION="tensorfloat32") == [
+        "--xla_dump_to=/nowhere", "True", "tensorfloat32"]
 
 
 def test_importing_simjax_starts_no_computation():

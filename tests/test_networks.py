@@ -144,3 +144,28 @@ def test_orthogonal_draws_flax_values_member_by_member_under_vmap():
         qr_batch_dims = [re.search(r'num_batch_dims = "(\d+)"', line).group(1)
                          for line in vmapped.lower(keys).as_text().splitlines() if "lapack_sgeqrf" in line]
         assert qr_batch_dims == ["0"], qr_batch_dims  # one QR, of one matrix at a time
+
+
+def test_on_a_cpu_highest_high_and_default_precision_compute_what_jax_default_does():
+    """--precision's default (highest) keeps the numbers a CPU computed before there was the
+    setting (JAX's default): the policy's gradient is the same to the bit at each."""
+    from simjax import runtime
+
+    if jax.default_backend() != "cpu":
+        pytest.skip("a GPU computes float32 matmuls in TF32 at high and default")
+    T, N = 3, 2
+    obs = flat_draw(jax.random.randint, jax.random.PRNGKey(0), (T, N, 42, 42, 3), 0, 256).astype(jnp.uint8)
+    reset = jnp.zeros((T, N), bool)
+    net = ActorCritic(num_actions=4)
+    params = net.init(jax.random.PRNGKey(0), net.initial_carry(N), obs, reset)
+
+    def loss(p):
+        _, logits, value = net.apply(p, net.initial_carry(N), obs, reset)
+        return jnp.sum(jax.nn.log_softmax(logits) * jnp.arange(4)) + jnp.sum(value ** 2)
+
+    grad = jax.jit(jax.grad(loss))  # the precision is part of jit's key: traced again under each
+    assert jax.config.jax_default_matmul_precision is None
+    base = grad(params)
+    for name in ("highest", "high", "default"):
+        with runtime.matmul_precision(name):
+            chex.assert_trees_all_equal(grad(params), base)

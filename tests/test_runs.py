@@ -3,6 +3,7 @@ diverges."""
 
 import csv
 import glob
+import json
 import os
 import signal
 import struct
@@ -16,9 +17,11 @@ import numpy as np
 import pytest
 from helpers import RND_TINY, flags
 
-from simjax import runs
+from simjax import runs, runtime
+from simjax import sweep as sweep_cli
 from simjax import train as cli
 from simjax.agents import TrainConfig
+from simjax.runs import training
 
 
 @pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
@@ -201,3 +204,49 @@ def test_a_checkpoint_whose_poses_store_their_heading_still_restores(tmp_path):
     back = runs.load_checkpoint(tmp_path, {"pose": pose})["runner"]["pose"]
     assert isinstance(back, motion.Pose) and int(back.angle) == int(pose.angle)
     assert float(back.heading) == float(pose.heading) == pytest.approx(1.0, abs=1e-4)
+
+
+def test_precision_is_a_run_setting_recorded_in_config_json(tmp_path, capsys):
+    config, _, _ = cli.parse_config(["--env", "maze-tiny", "--precision", "high", "--out", str(tmp_path / "new")])
+    assert config.precision == "high" and TrainConfig().precision == "highest"
+    runs.write_config(tmp_path, config)
+    record = json.loads((tmp_path / "config.json").read_text())
+    assert record["config"]["precision"] == "high" and runs.load_config(tmp_path).precision == "high"
+    # a config.json from before the flag: it trained at JAX's default, which on the CPU is float32
+    del record["config"]["precision"]
+    (tmp_path / "config.json").write_text(json.dumps(record))
+    assert runs.load_config(tmp_path).precision == "highest"
+    for parse, argv in ((cli.parse_config, ["--precision", "fast"]), (sweep_cli.parse_sweep, ["--precision", "high,fast"])):
+        with pytest.raises(SystemExit):
+            parse(argv)
+        assert "invalid choice: 'fast'" in capsys.readouterr().err
+    assert set(runtime.MATMUL_PRECISIONS) == set(dict(TrainConfig.__dataclass_fields__)["precision"].metadata["choices"])
+    with pytest.raises(ValueError, match="--precision must be one of"):
+        runtime.matmul_precision("fast")
+
+
+def test_a_run_is_traced_at_its_recorded_precision_whatever_jax_global_setting(tmp_path, monkeypatch):
+    """The command's programs are traced (so compiled) inside ``runtime.matmul_precision``: it
+    wins over JAX_DEFAULT_MATMUL_PRECISION (the global value set here) and leaves it as it was."""
+    seen = []
+
+    class Traced(Exception):
+        pass
+
+    def first_inputs(*args):  # the fresh run's init is traced with these, right after
+        seen.append(jax.config.jax_default_matmul_precision)
+        raise Traced
+
+    monkeypatch.setattr(training, "batch_inputs", first_inputs)
+    out = tmp_path / "run"
+    previous = jax.config.jax_default_matmul_precision
+    jax.config.update("jax_default_matmul_precision", "float32")  # what JAX_DEFAULT_MATMUL_PRECISION=float32 sets
+    try:
+        with pytest.raises(Traced):
+            cli.main(["--env", "maze-tiny", "--precision", "bfloat16", "--out", str(out), "--quiet"])
+        with pytest.raises(Traced):  # the folder has no checkpoint yet: resumed, it starts again, at config.json's precision
+            cli.main(["--resume", str(out), "--quiet"])
+        assert jax.config.jax_default_matmul_precision == "float32"
+    finally:
+        jax.config.update("jax_default_matmul_precision", previous)
+    assert seen == [runtime.MATMUL_PRECISIONS["bfloat16"]] * 2 == ["BF16_BF16_F32"] * 2

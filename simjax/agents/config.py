@@ -93,6 +93,14 @@ class TrainConfig:
                               "(the paper's A2C, one value head); false: it runs on across episode "
                               "ends with its own value head (RND's non-episodic intrinsic return), so "
                               "reaching the goal does not forfeit the bonus still to come")
+    # how the command compiles the run, not what it learns: every float32 matmul and convolution
+    # of the program (simjax.runtime.MATMUL_PRECISIONS). On a CPU highest, high and default give
+    # the numbers JAX's default gives, to the bit; highest stays the default until a GPU check
+    precision: str = dataclasses.field(default="highest", metadata={
+        "choices": ("highest", "high", "default", "bfloat16"),
+        "help": "float32 matmul and convolution precision: highest (float32), high and default (TF32 on NVIDIA "
+                "GPUs that have it, A100 on), bfloat16 (bfloat16 inputs, float32 sums); on a CPU the first three "
+                "give the same numbers; recorded in config.json, it wins over JAX_DEFAULT_MATMUL_PRECISION"})
 
     def __post_init__(self):
         """Checks the values alone, cheaply (a config is made whenever one is loaded or

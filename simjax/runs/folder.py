@@ -6,8 +6,9 @@
     metrics.csv         one row per seed (per sweep point and seed) per log interval, appended
                         and flushed as training goes; a sweep's rows start with a column per
                         swept setting
-    checkpoint.msgpack  the runner state of every seed as of the last metrics row (rewritten,
-                        atomically, after each row, so a stopped or killed run keeps it)
+    checkpoint.msgpack  the runner state of every seed as of a metrics row (rewritten atomically
+                        every ``--checkpoint-every`` seconds, at the end and when stopped; a
+                        killed run keeps the last, and resuming drops the rows after it)
     pretrain.csv        EC only: its reachability network's pretraining, one row per seed per chunk
     pretrain_state.msgpack  EC only, while it pretrains: the pretraining after its last chunk
                         (``resume`` goes on from it); removed once the checkpoint after the
@@ -104,7 +105,7 @@ def _read_config(run_dir: Path) -> dict:
 
 # a config.json without one of these settings was trained with this value (the code's fixed
 # value when the config was written), whatever today's default is
-TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5}
+TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest"}  # precision: JAX's default, on CPUs float32
 
 
 def load_config(run_dir: Path) -> TrainConfig:

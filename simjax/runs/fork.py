@@ -24,7 +24,7 @@ from simjax.runs.folder import atomic_write, restore, seed_keys, write_checkpoin
 
 # settings a fork may change: how it learns and what it is paid, not what it is
 FORKABLE = ("total_steps", "learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
-            "bonus_scale", "forward_weight", "rl_weight", "bonus_norm", "bonus_episodic")
+            "bonus_scale", "forward_weight", "rl_weight", "bonus_norm", "bonus_episodic", "precision")
 
 
 def _graft(fresh, old, path=""):

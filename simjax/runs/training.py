@@ -2,11 +2,13 @@
 
 Each compiled call trains ``config.updates_per_log`` updates of every member of the batch, one
 per sweep point and seed (``simjax.runs.grid``; a plain run's members are its seeds), as one
-``jax.vmap``; its metrics become one row per member in metrics.csv, and the checkpoint is
-rewritten to match the last row on disk, so a run stopped by Ctrl-C or SIGTERM, or killed,
-goes on from there bit for bit with ``resume``. A run whose losses, gradient norm or
-parameters stop being finite ends at that row (``Diverged``), keeping the last finite
-checkpoint.
+``jax.vmap``; its metrics become one row per member in metrics.csv. The checkpoint, every
+member's whole state (hundreds of MB a seed with Adam's moments), is rewritten after a row
+once ``checkpoint_every`` seconds have passed since the last one (0: after every row), at the
+end, and when the run is stopped by Ctrl-C or SIGTERM, so a stopped run goes on bit for bit
+with ``resume``; a killed one (SIGKILL, a crash) goes on from its last checkpoint, the rows
+after it dropped and trained again, to the same numbers. A run whose losses, gradient norm
+or parameters stop being finite ends at that row (``Diverged``), its last finite state saved.
 
 With several local devices (GPUs, or CPU devices made with
 ``--xla_force_host_platform_device_count``), the members are sharded over them (a
@@ -56,20 +58,35 @@ FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm
                 "forward_loss", "inverse_loss")
 
 
+# seconds between checkpoints (--checkpoint-every): at most this much training is lost to a kill
+CHECKPOINT_EVERY = 600.0
+
+
 class Diverged(RuntimeError):
     """Training produced a non-finite loss, gradient norm or parameter; nothing of that update
     was written."""
 
 
-def non_finite(metrics: dict, params, names: list[str]) -> list[str]:
-    """What in one chunk's ``metrics`` and the ``params`` after it (leading axis: member) is NaN
-    or infinite, one line per member that has any: 'NAME: term value, ..., GROUP parameters'."""
+def finite_parameters(params) -> dict:
+    """{group: (members,) bool}, whether each member's parameters of the group are all finite;
+    jitted where the parameters live, so that a row fetches a few booleans, not the parameters."""
+    import jax.numpy as jnp
+
+    def finite(leaves):
+        return jnp.stack([jnp.isfinite(x).reshape(x.shape[0], -1).all(axis=1) for x in leaves]).all(axis=0)
+
+    return {group: finite(jax.tree.leaves(tree)) for group, tree in params.items() if jax.tree.leaves(tree)}
+
+
+def non_finite(metrics: dict, finite: dict, names: list[str]) -> list[str]:
+    """What in one chunk's ``metrics`` and the parameters after it (``finite_parameters``;
+    leading axis: member) is NaN or infinite, one line per member that has any:
+    'NAME: term value, ..., GROUP parameters'."""
     found = []
     for i, name in enumerate(names):
         bad = [f"{k} {float(np.asarray(metrics[k])[i]):.6g}" for k in FINITE_TERMS
                if k in metrics and not np.isfinite(np.asarray(metrics[k])[i])]
-        bad += [f"{group} parameters" for group, tree in params.items()
-                if not all(np.isfinite(np.asarray(leaf)[i]).all() for leaf in jax.tree.leaves(tree))]
+        bad += [f"{group} parameters" for group, ok in finite.items() if not np.asarray(ok)[i]]
         if bad:
             found.append(f"{name}: {', '.join(bad)}")
     return found
@@ -209,13 +226,26 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
 
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         tensorboard: bool = False, sweep: dict | None = None,
-        devices=None) -> Path:
+        devices=None, checkpoint_every: float = CHECKPOINT_EVERY) -> Path:
     """Train ``config`` into the run folder ``out``; with ``resume``, go on from its checkpoint
-    (bit for bit the run it would have been);
+    (bit for bit the run it would have been); ``checkpoint_every``: seconds between
+    checkpoints (0: after every row; the end and a stop always write one);
     ``tensorboard``: also write the metrics as TensorBoard scalars (``MetricsLog``);
     ``sweep``: field -> values, every combination trained side by side (``check_sweep`` made
     ``config`` from them); ``devices``: the devices to shard the members over (default: all).
-    Raises ``Diverged`` at the first row with a non-finite loss, gradient norm or parameter."""
+    Every program is traced at ``config.precision`` (``runtime.matmul_precision``), whatever
+    JAX's global setting. Raises ``Diverged`` at the first row with a non-finite loss, gradient
+    norm or parameter."""
+    from simjax import runtime
+
+    if not checkpoint_every >= 0:
+        raise ValueError(f"--checkpoint-every must be a number of seconds >= 0, got {checkpoint_every}")
+    with runtime.matmul_precision(config.precision):
+        return _train(config, out, quiet, resume, tensorboard, sweep, devices, checkpoint_every)
+
+
+def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboard: bool, sweep: dict | None,
+           devices, checkpoint_every: float) -> Path:
     from simjax import plotting, runtime
     from simjax.agents import make_trainer, summarize
 
@@ -254,6 +284,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
 
     # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
     chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
+    finite = jax.jit(finite_parameters)
 
     total = config.step_offset + config.num_logs * steps_per_chunk
     progress = Progress(total, quiet, len(batch))
@@ -282,6 +313,12 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
     compiled = chunk.lower(runner).compile()
     start = time.perf_counter() - wall_before - pretrain_s  # wall_s counts the pretraining too
     log = MetricsLog(out, rows, tensorboard, labels=tuple(sweep))
+    saved = {"steps": done_steps, "at": time.monotonic()}  # the checkpoint on disk
+
+    def save():
+        write_checkpoint(out, runner, done_steps, seeds)
+        saved.update(steps=done_steps, at=time.monotonic())
+
     try:
         last = time.perf_counter()
         while done_steps < total:
@@ -289,7 +326,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
             metrics = jax.device_get(metrics)
             now = time.perf_counter()
             steps = done_steps + steps_per_chunk
-            bad = non_finite(metrics, jax.device_get(next_runner.params), names)
+            bad = non_finite(metrics, jax.device_get(finite(next_runner.params)), names)
             if bad:  # neither this row nor its runner is written: the checkpoint stays finite
                 raise Diverged(
                     f"training diverged in the updates up to {steps:,} agent steps per member: "
@@ -297,18 +334,24 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
                     "a smaller --learning-rate or --max-grad-norm may help")
             rate = steps_per_chunk * len(batch) / (now - last)
             last = now
-            with stops_deferred():  # a Ctrl-C or SIGTERM waits until the rows and their checkpoint are written
+            with stops_deferred():  # a Ctrl-C or SIGTERM waits until the rows (and a checkpoint due) are written
                 for i, (point, seed) in enumerate(batch):
                     values = {k: float(np.asarray(v)[i]) for k, v in metrics.items()}
                     log.append(steps, seed, values | {"steps_per_s": rate, "wall_s": now - start}, point)
                 log.flush()
                 runner, done_steps = next_runner, steps
-                write_checkpoint(out, runner, done_steps, seeds)
+                if done_steps >= total or time.monotonic() - saved["at"] >= checkpoint_every:
+                    save()
             progress.update(done_steps, rate, mean_over_seeds(metrics["success_ratio"]),
                             mean_over_seeds(metrics["mean_episode_length"]))
     except KeyboardInterrupt:
         print(f"\nstopped at {done_steps:,} steps; saving what the run has", file=sys.stderr)
-        write_checkpoint(out, runner, done_steps, seeds)
+        if saved["steps"] != done_steps:
+            save()
+    except Diverged:  # the rows before it are written: so is the state they lead to
+        if saved["steps"] != done_steps:
+            save()
+        raise
     finally:
         log.close()
         progress.close()
