@@ -383,12 +383,12 @@ class MyWayHome:
 
 
 def open_task(task: str, seed: int = 0, *, depth: bool = True) -> tuple[MyWayHome, tuple | None]:
-    """ViZDoom playing MyWayHome task ``task`` (in any look: ViZDoom has one) and the ``start`` to
+    """ViZDoom playing MyWayHome task ``task`` (one of ``TASK_SCENARIOS``) and the ``start`` to
     give ``new_episode``: (the game, None) for the paper's tasks, whose ICM wad places the
     player; (the patched shipped wad, the pose) for the starts no scenario has."""
-    from simjax.envs import mywayhome_base
-
-    scenario, start = TASK_SCENARIOS[mywayhome_base(task)]
+    if task not in TASK_SCENARIOS:
+        raise ValueError(f"ViZDoom plays {', '.join(TASK_SCENARIOS)}, not {task!r}")
+    scenario, start = TASK_SCENARIOS[task]
     return MyWayHome(seed, depth=depth, scenario=scenario), start
 
 
