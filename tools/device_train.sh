@@ -10,8 +10,9 @@
 # than FIGURES_S seconds of the SECONDS this call has; then, with the time left, draws the run's
 # trajectories and novelty map there (the checkpoint is too large to bring back) and copies
 # config.json, metrics.csv, curve.png, the figures' files and device_log.txt (commit, GPU, JAX
-# version, precision, wall times, the whole output) to $OUT. JAX_DEFAULT_MATMUL_PRECISION is
-# highest unless set.
+# version, precision, wall times, the whole output) to $OUT. Training compiles at the run's own
+# --precision (config.json; highest unless given); JAX_DEFAULT_MATMUL_PRECISION, highest unless
+# set, is what the figures' scripts run at.
 set -u
 began=$(date +%s)
 name=$1
