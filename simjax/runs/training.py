@@ -41,6 +41,7 @@ from simjax.agents import TrainConfig
 from simjax.runs.folder import (
     MetricsLog,
     atomic_write,
+    check_resumable,
     load_checkpoint,
     metric_columns,
     rows_up_to,
@@ -48,6 +49,7 @@ from simjax.runs.folder import (
     stops_deferred,
     write_checkpoint,
     write_config,
+    write_export,
 )
 from simjax.runs.grid import batch_inputs, grid_of, members
 from simjax.runs.progress import Progress, mean_over_seeds
@@ -60,6 +62,13 @@ FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm
 
 # seconds between checkpoints (--checkpoint-every): at most this much training is lost to a kill
 CHECKPOINT_EVERY = 600.0
+
+
+def save_state(out: Path, runner, steps: int, seeds: list[int]) -> None:
+    """checkpoint.msgpack and export/ at ``steps``, from one copy of ``runner`` on the host."""
+    host = jax.device_get(runner)
+    write_checkpoint(out, host, steps, seeds)
+    write_export(out, host, steps, seeds)
 
 
 class Diverged(RuntimeError):
@@ -251,6 +260,8 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
 
     runtime.enable_compilation_cache()
     out = Path(out)
+    if resume:
+        check_resumable(out)
     out.mkdir(parents=True, exist_ok=True)
     versions = {m: __import__(m).__version__ for m in ("jax", "flax", "optax", "brax")}
     sweep = sweep or {}
@@ -294,7 +305,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
         on = f", on {len(sharding.mesh.devices)} devices" if sharding is not None else ""
         print(f"{what}: {config.algo} on {config.env} ({points}{config.num_seeds} seed(s), "
               f"{config.num_envs} envs each{on}); run folder {out}", file=sys.stderr, flush=True)
-    write_checkpoint(out, runner, done_steps, seeds)
+    save_state(out, runner, done_steps, seeds)
     pretrain_s = 0.0
     if trainer.pretrain is not None and done_steps < config.step_offset:
         began = time.perf_counter()
@@ -302,7 +313,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
                                    sharding, resume)
         done_steps, pretrain_s = config.step_offset, time.perf_counter() - began + earlier
         with stops_deferred():  # the checkpoint after the pretraining, then its state is not needed
-            write_checkpoint(out, runner, done_steps, seeds)
+            save_state(out, runner, done_steps, seeds)
             (out / PRETRAIN_STATE).unlink(missing_ok=True)
     elif trainer.pretrain is not None and len(rows) == 1 and (out / "pretrain.csv").exists():
         # resumed after the pretraining's checkpoint, before the first row: wall_s counts the pretraining
@@ -316,7 +327,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
     saved = {"steps": done_steps, "at": time.monotonic()}  # the checkpoint on disk
 
     def save():
-        write_checkpoint(out, runner, done_steps, seeds)
+        save_state(out, runner, done_steps, seeds)
         saved.update(steps=done_steps, at=time.monotonic())
 
     try:
