@@ -27,8 +27,8 @@ from simjax.envs.topdown import draw_topdown  # noqa: E402
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 VIEWS = [  # (caption, x, y, heading in degrees)
-    ("very sparse start (spot 10)", *mywayhome_map.SPAWN_SPOTS[10], 0.0),
-    ("sparse start (spot 16)", *mywayhome_map.SPAWN_SPOTS[16], 0.0),
+    ("sparse start (spot 10, facing east)", *mywayhome_map.SPAWN_SPOTS[10], 0.0),
+    ("very sparse start (spot 15, facing west)", *mywayhome_map.SPAWN_SPOTS[15], 180.0),
     ("corridor, facing north", 464.0, -300.0, 90.0),
     ("goal corridor, facing the goal", 1040.0, -200.0, -90.0),
 ]
@@ -108,7 +108,7 @@ def draw_explore_goals(seeds=(0, 1, 2)):
 
 
 def draw_task_frames():
-    tasks = [("maze-very-sparse", "maze-very-sparse: the start"),
+    tasks = [("maze-very-sparse", "maze-very-sparse: a start"),
              ("melon", "melon: the start"),
              ("explore-goals", "explore-goals: a start")]
     fig, axes = plt.subplots(1, len(tasks), figsize=(3 * len(tasks), 3.3))

@@ -13,7 +13,8 @@ with an episodic memory of its own that starts with the walk's first frame, as a
 does. The policy's side: 16 episodes per seed from the run's own task, and the fraction of them
 that came within 96 units of each spot.
 
-Prints per spot: distance from the maze-very-sparse start (spot 10), the policy's visit
+Prints per spot: distance from the run's start (its task's spawn spot; spot 10, the map's own
+player start, for maze-dense, whose episodes start anywhere), the policy's visit
 fraction, the mean error per seed and, for models with a fixed RND target (sim, rnd), the
 target's *spread* there: half its summed variance over the walks' frames, which is the error
 of a model that predicts the spot's mean target. A room whose spread is high pays a high
@@ -65,7 +66,7 @@ def main(argv=None) -> int:
         parser.error(str(err))
     config = restored.config
     if not is_mywayhome(config.env) or config.algo == "a2c":
-        parser.error("needs a run on a MyWayHome task (maze-dense, -sparse, -very-sparse, in any look) "
+        parser.error("needs a run on a MyWayHome task (maze-dense, -sparse, -very-sparse, ..., in any look) "
                      "with a novelty model (sim, rnd, icm, ec)")
     trainer = restored.trainer
     model = trainer.novelty.model
@@ -75,10 +76,10 @@ def main(argv=None) -> int:
 
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     xy = np.asarray([mywayhome_map.SPAWN_SPOTS[s] for s in spots])
-    start = np.asarray(mywayhome_map.SPAWN_SPOTS[10])
-
     # the policy's side: which spots its own episodes come near
     env = restored.env
+    one_spot = env.layout.spawns.shape[0] == 1
+    start = np.asarray(env.layout.spawns[0] if one_spot else mywayhome_map.SPAWN_SPOTS[10])
     policy_run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, 16))
     visits = []
     for i in range(config.num_seeds):

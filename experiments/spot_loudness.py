@@ -49,7 +49,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import FLAT_MARK, check_name, is_mywayhome, make, mywayhome_look, mywayhome_spot, random_walks
+from simjax.envs import FLAT_MARK, check_name, is_mywayhome, make, mywayhome_base, mywayhome_look, mywayhome_spot, random_walks
 from simjax.envs.doom import mywayhome_map
 from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
 from simjax.novelty.networks import RNDTarget
@@ -86,8 +86,7 @@ def look_name(task) -> str:
     """``task``'s look: what its name adds to its MyWayHome task's ('ViZDoom look' for none)."""
     if not isinstance(task, str):
         return task.label
-    base = next(b for b in ("maze-very-sparse", "maze-sparse", "maze-dense") if task.startswith(b))
-    return task[len(base) + 1:] or "ViZDoom look"
+    return task[len(mywayhome_base(task)) + 1:] or "ViZDoom look"
 
 
 def world_frames(task, spots, walks: int, steps: int) -> list:

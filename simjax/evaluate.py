@@ -89,12 +89,12 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
         parser.error("--video needs a FILE.gif and --video-episodes of at least 1")
     if args.backend == "vizdoom":
         try:
-            from simjax.envs.doom.vizdoom_ref import TASK_STARTS
+            from simjax.envs.doom.vizdoom_ref import TASK_SCENARIOS
         except ImportError as err:
             parser.error(f"--backend vizdoom needs the vizdoom package ({err}); pip install -e '.[test]'")
-        if config.env not in TASK_STARTS:
-            parser.error(f"--backend vizdoom plays MyWayHome; {args.run} trained on {config.env}, "
-                         f"not one of {', '.join(TASK_STARTS)}")
+        if config.env not in TASK_SCENARIOS:
+            parser.error(f"--backend vizdoom plays MyWayHome in ViZDoom's look; {args.run} trained on {config.env}, "
+                         f"not one of {', '.join(TASK_SCENARIOS)}")
     from simjax.envs import make
 
     env = make(config.env)
@@ -380,8 +380,7 @@ def play(args, argv: list[str], config, env, limit: int) -> int:
     else:
         from simjax.envs.doom import vizdoom_ref
 
-        game = vizdoom_ref.MyWayHome(seed=args.eval_seed, depth=False)
-        start = vizdoom_ref.TASK_STARTS[config.env]
+        game, start = vizdoom_ref.open_task(config.env, seed=args.eval_seed, depth=False)
         seeds = np.random.default_rng(args.eval_seed).integers(0, 2**31 - 1, size=max(n, n_random))
         jitted = jax.jit(act)
         run_policy = lambda p: vizdoom_episodes(game, start, policy_actor(jitted, network, p, key, steps),

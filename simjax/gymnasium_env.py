@@ -3,20 +3,25 @@
 
 Importing this module registers, for ``gymnasium.make`` and ``gymnasium.make_vec``:
 
-============================================  =======================  ==========================
+============================================  =======================  ===================================
 id                                            simjax task               start of every episode
-============================================  =======================  ==========================
+============================================  =======================  ===================================
 ``simjax/MyWayHome-dense-v0``                 ``maze-dense``            a random spot of the 17
-``simjax/MyWayHome-sparse-v0``                ``maze-sparse``           spot 16, facing east
-``simjax/MyWayHome-very-sparse-v0``           ``maze-very-sparse``      spot 10, facing east
-============================================  =======================  ==========================
+``simjax/MyWayHome-sparse-v1``                ``maze-sparse``           spot 10, facing 0-3.6 degrees
+``simjax/MyWayHome-very-sparse-v1``           ``maze-very-sparse``      spot 15, facing 176.4-183.6 degrees
+``simjax/MyWayHome-sparse-v0``                ``maze-spot16-east``      spot 16, facing east
+``simjax/MyWayHome-very-sparse-v0``           ``maze-spot10-east``      spot 10, facing east
+============================================  =======================  ===================================
+
+The v1 ids are the paper's tasks, started as the ICM code's scenario files start them
+(``simjax.envs.doom.icm_scenarios``); the v0 ids keep the starts they had before 2026-12-04.
 
 Either import it first or name it in the id (Gymnasium's ``"module:id"`` form, which imports the
 module before looking the id up; ``gymnasium.envs.registration._find_spec``)::
 
     import gymnasium
-    env = gymnasium.make("simjax.gymnasium_env:simjax/MyWayHome-very-sparse-v0", render_mode="rgb_array")
-    envs = gymnasium.make_vec("simjax.gymnasium_env:simjax/MyWayHome-very-sparse-v0", num_envs=16)
+    env = gymnasium.make("simjax.gymnasium_env:simjax/MyWayHome-very-sparse-v1", render_mode="rgb_array")
+    envs = gymnasium.make_vec("simjax.gymnasium_env:simjax/MyWayHome-very-sparse-v1", num_envs=16)
 
 ``make_vec`` builds ``SimjaxVectorEnv`` (the ids' ``vector_entry_point``; also with
 ``vectorization_mode="vector_entry_point"``): all N envs step in one jitted ``jax.vmap`` call.
@@ -79,8 +84,10 @@ from simjax.envs.maze import MazeEnv
 # simjax task -> Gymnasium id
 ENV_IDS = {
     "maze-dense": "simjax/MyWayHome-dense-v0",
-    "maze-sparse": "simjax/MyWayHome-sparse-v0",
-    "maze-very-sparse": "simjax/MyWayHome-very-sparse-v0",
+    "maze-sparse": "simjax/MyWayHome-sparse-v1",
+    "maze-very-sparse": "simjax/MyWayHome-very-sparse-v1",
+    "maze-spot16-east": "simjax/MyWayHome-sparse-v0",
+    "maze-spot10-east": "simjax/MyWayHome-very-sparse-v0",
 }
 # the tasks the wrappers take (the registered ones and the smoke-test room)
 TASKS = (*ENV_IDS, "maze-tiny")

@@ -203,10 +203,12 @@ def test_truncation_at_525_steps():
 
 
 def test_fixed_and_random_spawns():
-    sparse = jax.jit(jax.vmap(make("maze-sparse").reset))(jax.random.split(jax.random.PRNGKey(0), 8))
+    # the paper's fixed starts and their angle ranges: tests/test_icm_scenarios.py
+    sparse = jax.jit(jax.vmap(make("maze-spot16-east").reset))(jax.random.split(jax.random.PRNGKey(0), 8))
     np.testing.assert_allclose(np.asarray(sparse.pipeline_state.pose.pos), [mywayhome_map.SPAWN_SPOTS[16]] * 8, rtol=1e-6)
+    assert np.all(np.asarray(sparse.pipeline_state.pose.angle) == 0)
     very = jax.jit(make("maze-very-sparse").reset)(jax.random.PRNGKey(1))
-    np.testing.assert_allclose(np.asarray(very.pipeline_state.pose.pos), mywayhome_map.PLAYER_START_XY)
+    np.testing.assert_allclose(np.asarray(very.pipeline_state.pose.pos), mywayhome_map.SPAWN_SPOTS[15], rtol=1e-6)
     dense = jax.jit(jax.vmap(make("maze-dense").reset))(jax.random.split(jax.random.PRNGKey(0), 64))
     assert len({tuple(np.round(p, 2)) for p in np.asarray(dense.pipeline_state.pose.pos)}) > 8
     assert np.unique(np.round(np.asarray(dense.pipeline_state.pose.heading), 3)).size > 32
@@ -319,7 +321,7 @@ def test_a_spot_walk_starts_at_the_spot_in_the_runs_own_world():
 def test_unknown_task_lists_known_ones():
     with pytest.raises(ValueError, match="known tasks: maze-dense"):
         make("maze-nope")
-    assert {"maze-dense", "maze-sparse", "maze-very-sparse"} <= set(TASK_NAMES)
+    assert {"maze-dense", "maze-sparse", "maze-very-sparse", "maze-spot10-east", "maze-spot16-east"} <= set(TASK_NAMES)
 
 
 def test_topdown_drawing_shows_walls_goal_and_agent(tmp_path):

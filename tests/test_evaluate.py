@@ -86,6 +86,32 @@ def test_vizdoom_backend_and_video(run_dir, tmp_path):
         assert 1 <= gif.n_frames <= 20
 
 
+def test_a_folder_written_before_the_icm_starts_evaluates_and_resumes_with_the_start_it_trained_with(run_dir, tmp_path):
+    # a config.json of before 2026-12-04: no "tasks_as_of", and maze-very-sparse meant spot 10 facing east
+    old = tmp_path / "old"
+    shutil.copytree(run_dir, old, ignore=shutil.ignore_patterns("evaluate-*"))
+    record = json.loads((old / "config.json").read_text())
+    del record["tasks_as_of"]
+    record["config"]["env"] = "maze-very-sparse"
+    (old / "config.json").write_text(json.dumps(record))
+    restored = runs.restore(old)
+    assert restored.config.env == "maze-spot10-east"
+    pose = jax.jit(restored.env.reset)(jax.random.PRNGKey(0)).pipeline_state.pose
+    np.testing.assert_allclose(np.asarray(pose.pos), [240.0, -176.0])
+    assert int(pose.angle) == 0
+    assert evaluate.main([str(old), "--backend", "vizdoom", "--episodes", "1", "--random-episodes", "0",
+                          "--max-steps", "3", "--quiet"]) == 0
+    evaluated = json.loads((old / "evaluate-vizdoom-seed0.json").read_text())
+    assert evaluated["env"] == "maze-spot10-east"
+    assert evaluated["policy"]["ends"]["nearest_spot"] == {"10": 1}  # 3 steps from spot 10 stay near it
+    config = runs.load_config(old)
+    runs.run(TrainConfig(**{**config.__dict__, "total_steps": 16}), old, quiet=True, resume=True)
+    record = json.loads((old / "config.json").read_text())  # rewritten under today's name
+    assert record["config"]["env"] == "maze-spot10-east" and "tasks_as_of" in record
+    steps = sorted({int(float(line.split(",")[0])) for line in (old / "metrics.csv").read_text().splitlines()[1:]})
+    assert steps == [8, 16]
+
+
 @pytest.mark.parametrize("bad, message", [
     (["--backend", "vizdoom", "--episodes", "0"], "--episodes must be at least 1"),
     (["--backend", "doom"], "invalid choice: 'doom'"),
@@ -155,8 +181,8 @@ def test_wilson_interval():
 
 
 def test_the_policy_sees_in_vizdoom_what_simjax_draws_at_the_same_pose():
-    """The first frame the ViZDoom backend hands the policy (random spots, and the sparse task's
-    start) against simjax's render at the pose ViZDoom reports."""
+    """The first frame the ViZDoom backend hands the policy (random spots, and spot 16 placed by
+    the patched wad) against simjax's render at the pose ViZDoom reports."""
     seen = []
 
     def choose(i):
@@ -164,7 +190,7 @@ def test_the_policy_sees_in_vizdoom_what_simjax_draws_at_the_same_pose():
 
     ends = []
     with vr.MyWayHome(seed=0, depth=False) as game:
-        for start in (None, None, vr.TASK_STARTS["maze-sparse"]):
+        for start in (None, None, vr.TASK_SCENARIOS["maze-spot16-east"][1]):
             ends.append(evaluate.vizdoom_episodes(game, start, choose, [len(seen)], steps=1, record=0)[3])
     # an episode of one step ends where it stood before that step: where its frame was seen
     np.testing.assert_array_equal(np.concatenate(ends), [pose[:2] for _, pose in seen])

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simjax.task_names import TASKS_AS_OF
+
 PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper"
 sys.path.insert(0, str(PAPER))
 
@@ -36,10 +38,13 @@ def series(ratios, episodes, step=10):
                                          "success_ratio": list(ratios), "episodes": list(episodes)})
 
 
-def write_folder(folder: Path, config: dict, rows: list[dict], swept: tuple[str, ...] = (), sweep=None, grid=None):
-    """A run folder (or, with ``swept`` columns, a sweep folder) holding ``rows``."""
+def write_folder(folder: Path, config: dict, rows: list[dict], swept: tuple[str, ...] = (), sweep=None, grid=None,
+                 tasks_as_of=TASKS_AS_OF):
+    """A run folder (or, with ``swept`` columns, a sweep folder) holding ``rows``; ``tasks_as_of``
+    None writes its config.json as it was written before the tasks took the ICM wads' starts."""
     folder.mkdir(parents=True)
     record = {"config": config, "versions": {}} | ({"sweep": sweep, "grid": grid} if sweep else {})
+    record |= {"tasks_as_of": tasks_as_of} if tasks_as_of else {}
     (folder / "config.json").write_text(json.dumps(record))
     lines = [",".join([*swept, *COLUMNS])]
     for r in rows:
@@ -209,6 +214,21 @@ def test_figure11_and_the_tables_write_csv_markdown_and_png(tmp_path):
     assert "| 25k / 25k | 25k [25k, 25k] | 2/2 |" in table2  # L = 3 does at its first row of 100 episodes
     assert "| maze-very-sparse | no run | no run |" in table2  # SIM : RND and SIM : ICM need both cells
     assert "SIM : RND = 0.40" in table2  # the paper's 1.82m / 4.51m beside ours
+
+
+def test_a_folder_written_before_the_icm_starts_is_tabled_by_the_start_it_trained_with(tmp_path):
+    rows = [{"env_steps": 25_000 * (i + 1), "seed": 0, "success_ratio": 0.5, "episodes": 100} for i in range(4)]
+    old = write_folder(tmp_path / "old", SIM, rows, tasks_as_of=None)  # maze-very-sparse meant spot 10, east
+    new = write_folder(tmp_path / "new", SIM | {"algo": "rnd", "bonus_scale": 0.01}, rows)  # spot 15, west
+    (point,) = protocol.read_points(old)
+    assert point.config["env"] == "maze-spot10-east" and point.record["tasks_as_of"] == TASKS_AS_OF
+    assert report.input_commands(old)[0].startswith("python -m simjax.train --env maze-spot10-east --algo sim")
+    assert protocol.read_points(new)[0].config["env"] == "maze-very-sparse"
+    assert tables.main([str(old), str(new), "--out-dir", str(tmp_path / "results")]) == 0
+    table1 = (tmp_path / "results" / "paper-table1" / "table1.md").read_text()
+    assert "| maze-sparse (as maze-spot10-east+) | SIM | `old` |" in table1  # the paper's sparse column, marked
+    assert "| maze-very-sparse | SIM | no run |" in table1 and "| maze-very-sparse | RND | `new` |" in table1
+    assert "without its 0-3.6 degree jitter" in table1
 
 
 def test_an_empty_ec_cell_asks_for_the_pretraining_passes_the_tables_ec_runs_used():

@@ -67,9 +67,9 @@ def test_patch_changes_nothing_else(game):
             np.testing.assert_array_equal(a["frames"], b["frames"])
 
 
-@pytest.mark.parametrize("task", ["maze-sparse", "maze-very-sparse"])
+@pytest.mark.parametrize("task", ["maze-spot16-east", "maze-spot10-east"])
 def test_task_start_lands_exactly(game, task):
-    x, y, angle = vr.TASK_STARTS[task]
+    x, y, angle = vr.TASK_SCENARIOS[task][1]
     game.new_episode(start=(x, y, angle), seed=5)
     px, py, pa = game.pose()
     assert (round(px * 65536), round(py * 65536)) == (round(x * 65536), round(y * 65536))
@@ -89,7 +89,7 @@ def test_placed_start_is_a_natural_start(game):
 
 
 def test_placed_episode_times_out_like_the_scenario(game):
-    for start in (None, vr.TASK_STARTS["maze-sparse"]):
+    for start in (None, vr.TASK_SCENARIOS["maze-spot16-east"][1]):
         game.new_episode(start=start, seed=4)
         n, done = 0, False
         while not done:
@@ -104,7 +104,7 @@ def test_blocked_start_is_refused(game):
 
 
 def test_forward_step_from_rest(game):
-    game.new_episode(start=vr.TASK_STARTS["maze-very-sparse"])
+    game.new_episode(start=vr.TASK_SCENARIOS["maze-spot10-east"][1])
     game.step(FORWARD)
     x, y, _ = game.pose()
     assert (x - 240.0) == pytest.approx(7.1, abs=0.05) and y == -176.0

@@ -1,6 +1,7 @@
-"""Collect the paper's tables and figures into docs/results.md.
+"""Collect the paper's tables and figures into docs/results-generated.md (the tables in full;
+docs/results.md opens with the answer and links it).
 
-    python experiments/paper/collect.py [--page docs/results.md]
+    python experiments/paper/collect.py [--page docs/results-generated.md]
 
 Rewrites the section between ``<!-- paper:begin -->`` and ``<!-- paper:end -->`` (inserted
 right after the page's first heading line if the page has no such markers) with every
@@ -81,7 +82,7 @@ def update(page_text: str, new_section: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python experiments/paper/collect.py", description=__doc__.split("\n")[0])
-    parser.add_argument("--page", type=Path, default=ROOT / "docs" / "results.md")
+    parser.add_argument("--page", type=Path, default=ROOT / "docs" / "results-generated.md")
     parser.add_argument("--results", type=Path, default=ROOT / "experiments" / "results")
     args = parser.parse_args(argv)
     text = args.page.read_text()

@@ -468,7 +468,26 @@ def figure_main(argv: list[str] | None, figure: str, title: str, panels: list[Pa
     parser = argparse.ArgumentParser(prog=f"python experiments/paper/{figure}.py", description=description)
     parser.add_argument("folders", nargs="*", help=f"run or sweep folders (default: {' '.join(default_inputs)})")
     parser.add_argument("--out", type=Path, default=RESULTS / f"paper-{figure}", help="output folder")
+    parser.add_argument("--very-sparse-as", default=VERY_SPARSE, metavar="TASK",
+                        help=f"the task whose runs the panels on the paper's very sparse setting draw (default "
+                             f"{VERY_SPARSE}; maze-spot10-east for the runs made from spot 10 facing east, which "
+                             f"were called maze-very-sparse before 2026-12-04)")
     args = parser.parse_args(argv)
+    if args.very_sparse_as != VERY_SPARSE:
+        panels = [retarget(p, args.very_sparse_as) for p in panels]
+        title = title.replace(VERY_SPARSE, args.very_sparse_as)
     figure_report(figure, title, panels, read_all(find_folders(args.folders, default_inputs)), args.out, figure)
     return 0
+
+
+VERY_SPARSE = "maze-very-sparse"
+
+
+def retarget(panel: Panel, task: str) -> Panel:
+    """``panel`` drawing ``task``'s runs where it draws the paper's very sparse setting's."""
+    if panel.controls.get("env") != VERY_SPARSE:
+        return panel
+    return dataclasses.replace(panel, controls=panel.controls | {"env": task}, title=panel.title.replace(VERY_SPARSE, task),
+                               make=panel.make.replace(f"--env {VERY_SPARSE}", f"--env {task}")
+                               .replace(f"figure9-{VERY_SPARSE}", f"figure9-{task}"))
 

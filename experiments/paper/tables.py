@@ -5,8 +5,11 @@ with the paper's own numbers beside ours.
     python experiments/paper/tables.py [RUN_OR_SWEEP_FOLDER ...] [--out-dir experiments/results]
 
 Default inputs: ``experiments/results/table1/*/`` (e.g. ``table1/maze-spot10-east-sim``);
-each run is placed in the table by its config's ``env`` and ``algo``, a cell without one is
-listed as missing with the command that would make it. Writes
+each run is placed in the table by its config's ``env`` and ``algo`` (a folder written before the
+tasks took the ICM wads' starts by the start it trained with, ``simjax.task_names``), a cell
+without one is listed as missing with the command that would make it. A run on
+``maze-spot10-east`` (spot 10 facing exactly east: maze-very-sparse until 2026-12-04) stands in
+the paper's sparse column, marked as that start without the paper's 0-3.6 degree jitter. Writes
 ``experiments/results/paper-table1/table1.{csv,md,png}`` and ``paper-table2/table2.{csv,md,png}``;
 the statistics are ``protocol.py``'s. Our Table 2 threshold is 0.9 over the last >= 100
 episodes; the paper's "convergence standard" is not defined in its text.
@@ -73,12 +76,27 @@ PAPER_TABLE2_NOTE = ("*: the paper's text gives ICM, RND and SIM one value each,
                      "\"convergence standard\" is not defined, ours is a success ratio >= 0.9 over the last >= 100 episodes.")
 
 
+# a start that stands in one of the paper's columns without being that column's task exactly
+STANDS_IN = {"maze-spot10-east": "maze-sparse"}
+STANDS_IN_NOTE = ("`maze-spot10-east` (marked +): spot 10 facing exactly east, the paper's sparse start without its "
+                  "0-3.6 degree jitter; it was called maze-very-sparse until 2026-12-04, when the tasks took the "
+                  "ICM code's scenario files' starts.")
+
+
 def cells(points) -> dict:
-    """{(env, algo): [points]} for the table's cells; other points under (env, algo) too."""
+    """{(setting, algo): [points]} for the table's cells (a setting is one of the paper's columns:
+    a run's env, or the column it stands in); other points under (env, algo) too."""
     out: dict = {}
     for p in points:
-        out.setdefault((p.config.get("env"), p.config.get("algo")), []).append(p)
+        env = p.config.get("env")
+        out.setdefault((STANDS_IN.get(env, env), p.config.get("algo")), []).append(p)
     return out
+
+
+def setting_label(env: str, point) -> str:
+    """A row's setting: the column, with the start the run had where it only stands in for it."""
+    own = point.config.get("env")
+    return env if own == env else f"{env} (as {own}+)"
 
 
 def missing_command(env: str, algo: str, points) -> str:
@@ -120,7 +138,8 @@ def build(points, out_dir: Path) -> list[Path]:
             for p in found:
                 s = summarize(p)
                 summaries.setdefault((env, algo), []).append(s)
-                head = [env, PAPER_ALGO[algo], f"`{p.name}`", str(len(p.seeds)), f"{p.trained:,} / {p.budget:,}"]
+                head = [setting_label(env, p), PAPER_ALGO[algo], f"`{p.name}`", str(len(p.seeds)),
+                        f"{p.trained:,} / {p.budget:,}"]
                 rows1.append(head + final_cells(s) + [paper1])
                 rows2.append(head + steps_cells(s) + [paper2])
                 row = summary_csv_row(s)
@@ -130,6 +149,8 @@ def build(points, out_dir: Path) -> list[Path]:
                             | {"paper": paper2})
     head = ["setting", "method", "input", "seeds", "trained / budget"]
     notes = missing + ([f"- not in the table (other task or method): {', '.join(f'`{p.name}`' for p in others)}"] if others else [])
+    if any(p.config.get("env") in STANDS_IN for p in used):
+        notes.append(f"- {STANDS_IN_NOTE}")
     inputs = ["Inputs, and the commands that made them:", "", *inputs_markdown(used), ""]
 
     dir1, dir2 = out_dir / "paper-table1", out_dir / "paper-table2"
@@ -201,7 +222,7 @@ def draw_table1(by_cell: dict, path: Path) -> None:
         drawn = False
         for i, algo in enumerate(METHODS):
             for p in by_cell.get((env, algo), []):
-                draw_curve(ax, p, PAPER_ALGO[algo], color=f"C{i}")
+                draw_curve(ax, p, PAPER_ALGO[algo] + ("" if p.config.get("env") == env else "+"), color=f"C{i}")
                 drawn = True
         style_success_axis(ax, env)
         if drawn:

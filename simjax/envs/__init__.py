@@ -1,15 +1,22 @@
 """Task registry: ``make(name)`` builds any task by name.
 
-MyWayHome (paper section 3.1, appendix B.1; the tasks in docs/worlds.md):
+MyWayHome (paper section 3.1, appendix B.1; the tasks in docs/worlds.md), each started as the
+ICM code's scenario file starts it (``simjax.envs.doom.icm_scenarios``), which is where the paper
+took its three settings from:
 - ``maze-dense``: a uniformly random spot of the 17 and a uniformly random heading;
-- ``maze-sparse``: always spot 16 (the first room past the start corridor), facing east;
-- ``maze-very-sparse``: always spot 10, the map's own player start in the far-left room,
-  facing east;
-- ``maze-dense-invented-looks``, ``maze-sparse-invented-looks``, ``maze-very-sparse-invented-looks``:
+- ``maze-sparse``: always spot 10, the map's own player start in the far-left room, facing east
+  with an angle drawn per episode from 0 to 3.6 degrees (Doom's angle units, as ACS draws it);
+- ``maze-very-sparse``: always spot 15, the small room at the bottom of the map, facing west, 176.4
+  to 183.6 degrees;
+- ``maze-spot10-east`` and ``maze-spot16-east``: spot 10 or spot 16 facing exactly east, the
+  starts that ``maze-very-sparse`` and ``maze-sparse`` had before 2026-12-04 (``simjax.task_names``:
+  run folders written before then are read under these names), kept so those runs rebuild;
+  spot 10 facing east is the paper's sparse start without its jitter, spot 16 no start of the paper's;
+- ``maze-dense-invented-looks``, ``maze-sparse-invented-looks``, ... (any of the tasks above):
   the same tasks (map, spots, Doom's motion) drawn with ``raycaster``'s invented wall looks instead
   of Freedoom's textures and ViZDoom's light; a diagnostic world, to tell what the look does to
   learning from what the motion does, not one of the paper's;
-- ``maze-very-sparse-flat-SILVER2-TLITE6_1`` (any of the three tasks, then ``-flat-`` and one or
+- ``maze-very-sparse-flat-SILVER2-TLITE6_1`` (any of the tasks above, then ``-flat-`` and one or
   more of ``mywayhome_map.TEXTURE_NAMES`` joined by ``-``): ViZDoom's look with each named
   texture's texels replaced by their mean colour, its light, offsets and everything else as
   they are; a diagnostic world, to test which paint a novelty bonus follows, not one of the
@@ -45,7 +52,7 @@ import numpy as np
 
 from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
 from simjax.envs.dmlab.melon import MELON_TASK, MelonLevelEnv, melon_layout
-from simjax.envs.doom import mywayhome_map
+from simjax.envs.doom import icm_scenarios, mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
 
@@ -72,9 +79,13 @@ def mywayhome_look(layout: Layout, assets: dict | None = None, flat: tuple[str, 
                                   assets["wall_u_reversed"], assets=assets)
 
 
-def _mywayhome(name: str, spawn_ids=None, textured: bool = True, flat: tuple[str, ...] = (), **task) -> MazeEnv:
-    layout = mywayhome_layout(spawn_ids)
-    return MazeEnv(layout, MazeTask(name, **task), look=mywayhome_look(layout, flat=flat) if textured else None)
+def _mywayhome(name: str, base: str, textured: bool = True, flat: tuple[str, ...] = ()) -> MazeEnv:
+    """Task ``name``: MyWayHome started as task ``base`` (a key of _MYWAYHOME), in ViZDoom's look
+    (with the ``flat`` textures painted their mean colour), or the invented looks."""
+    spots, angles = _MYWAYHOME[base]
+    rule = dict(random_heading=True) if angles is None else dict(random_heading=False, angle_range=angles)
+    layout = mywayhome_layout(spots)
+    return MazeEnv(layout, MazeTask(name, **rule), look=mywayhome_look(layout, flat=flat) if textured else None)
 
 
 def mywayhome_spot(env: MazeEnv, spot: int) -> MazeEnv:
@@ -89,19 +100,43 @@ def tiny_layout() -> Layout:
     return Layout.build(room, [goal_item((200.0, 64.0))], spawn_xy=[(40.0, 64.0)])
 
 
-# MyWayHome's three tasks: (spawn spots, None for all 17; whether the heading is random)
-_MYWAYHOME = {"maze-dense": (None, True), "maze-sparse": ([16], False), "maze-very-sparse": ([10], False)}
+FLAT_MARK = "-flat-"
+
+
+def _icm(start: icm_scenarios.EnterStart):
+    """(spawn spots, angle range) of one of the ICM scenarios' fixed-spot starts."""
+    low, high = start.spots
+    if low != high:
+        raise ValueError("only a fixed spot is a task's start here; dense draws a spot of all 17")
+    return [low], start.angles
+
+
+# MyWayHome's tasks: (spawn spots, None for all 17; Doom angle range, inclusive, or None for a
+# uniformly random heading)
+_MYWAYHOME = {
+    "maze-dense": (None, None),
+    "maze-sparse": _icm(icm_scenarios.SPARSE),
+    "maze-very-sparse": _icm(icm_scenarios.VERY_SPARSE),
+    "maze-spot10-east": ([10], (0, 0)),
+    "maze-spot16-east": ([16], (0, 0)),
+}
 MYWAYHOME_TASKS = (*_MYWAYHOME, *(f"{name}-invented-looks" for name in _MYWAYHOME))
+
+
+def mywayhome_base(name: str) -> str:
+    """The MyWayHome task whose start task ``name`` has (``name`` without its look), e.g.
+    ``maze-very-sparse`` for ``maze-very-sparse-flat-SILVER2``; a ValueError for another world."""
+    base = name.removesuffix("-invented-looks").partition(FLAT_MARK)[0]
+    if base not in _MYWAYHOME:
+        raise ValueError(f"{name!r} is not a MyWayHome task")
+    return base
 
 
 def _mywayhome_task(name: str) -> Callable[[], MazeEnv]:
     """The builder of ``name``, one of MYWAYHOME_TASKS."""
     base = name.removesuffix("-invented-looks")
-    spots, random_heading = _MYWAYHOME[base]
-    return lambda: _mywayhome(name, spots, textured=name == base, random_heading=random_heading)
+    return lambda: _mywayhome(name, base, textured=name == base)
 
-
-FLAT_MARK = "-flat-"
 
 
 def _flat_parts(name: str) -> tuple[str, tuple[str, ...]] | None:
@@ -172,12 +207,11 @@ def make(name: str):
     flat = _flat_parts(name)
     if flat is not None:
         base, textures = flat
-        spots, random_heading = _MYWAYHOME[base]
-        return _mywayhome(name, spots, flat=textures, random_heading=random_heading)
+        return _mywayhome(name, base, flat=textures)
     return _REGISTRY[name]()
 
 
-__all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "is_mywayhome", "FLAT_MARK", "FIXED_LENGTH_TASKS",
+__all__ = ["make", "check_name", "TASK_NAMES", "MYWAYHOME_TASKS", "is_mywayhome", "mywayhome_base", "FLAT_MARK", "FIXED_LENGTH_TASKS",
            "episodes_end_early", "MazeEnv", "MazeTask",
            "Layout", "mywayhome_spot", "ExploreGoalsEnv", "ExploreGoalsPaperEnv", "mywayhome_layout", "tiny_layout", "melon_layout",
            "random_walks", "rollout", "given_actions", "starts_episode", "episode_metrics", "uniform_policy"]

@@ -97,8 +97,11 @@ class MazeTask:
     """Rules of one navigation task on a layout."""
 
     name: str
-    random_heading: bool = True  # else every episode starts facing `heading`
+    random_heading: bool = True  # else every episode starts facing `heading` (or within `angle_range`)
     heading: float = 0.0  # radians, east
+    # if set (and random_heading is False), each episode's Doom angle is drawn uniformly from
+    # these units, inclusive (65536 a turn), as an ACS ENTER script's random(lo, hi) draws it
+    angle_range: tuple[int, int] | None = None
     max_steps: int = 525  # agent steps (2100 tics / 4)
     touch_distance: float = 36.0  # Doom pickup: player half-size 16 + item radius 20, per axis
     num_actions: int = 4  # the first of (turn left, turn right, forward, no-op)
@@ -256,6 +259,9 @@ class MazeEnv(Env):
         spot = jax.random.randint(k_spot, (), 0, self.layout.spawns.shape[0])
         if self.task.random_heading:
             heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
+        elif self.task.angle_range is not None:
+            low, high = self.task.angle_range
+            return motion.Pose.facing(self.layout.spawns[spot], jax.random.randint(k_head, (), low, high + 1))
         else:
             heading = jnp.float32(self.task.heading)
         return motion.Pose.at(self.layout.spawns[spot], heading)

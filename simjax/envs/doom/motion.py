@@ -74,7 +74,13 @@ class Pose(NamedTuple):
     def at(xy, heading) -> Pose:
         """A player standing still at ``xy`` facing ``heading`` (radians; rounded to Doom's
         nearest angle unit, 0.0055 deg). Works on traced values."""
-        angle = angle_units(heading)
+        return Pose.facing(xy, angle_units(heading))
+
+    @staticmethod
+    def facing(xy, angle) -> Pose:
+        """A player standing still at ``xy`` facing Doom angle ``angle`` (integer units, 65536 a
+        turn, taken modulo a turn). Works on traced values."""
+        angle = jnp.mod(jnp.asarray(angle, jnp.int32), ANGLE_UNITS)
         return Pose(jnp.asarray(xy, jnp.float32).reshape(2), jnp.zeros(2, jnp.float32), angle, jnp.int32(0))
 
 

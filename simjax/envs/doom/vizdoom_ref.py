@@ -53,9 +53,16 @@ Choosing the start pose (what we found, vizdoom 1.3.2)
   episode time 10 and times out at 2110 after 525 steps, exactly as the scenario's own
   episodes. (The one difference: ViZDoom charges the living reward for that tic, so
   ``get_total_reward()`` starts at -0.0001 instead of 0; our reward ignores it.)
-  The noreward-rl (ICM) code took the same road: its sparse and very sparse tasks load its
-  own wads, ``my_way_home_sparse.wad`` / ``my_way_home_verySparse.wad`` (doomFiles/ there),
-  whose start is fixed in the map.
+
+The paper's tasks: the ICM code's own wads
+------------------------------------------
+The paper's three settings are the ICM code's three scenario files (``icm_scenarios``; vendored
+in ``assets/icm/``): the same map, each with its own ENTER script (dense: ViZDoom's rule;
+sparse: spot 10 at an angle of 0-3.6 degrees; very sparse: spot 15 at 176.4-183.6 degrees).
+``MyWayHome(scenario="sparse")`` loads one of them unchanged, so ``new_episode()`` starts where
+that file starts the player, drawn by ZDoom's own random numbers; ``open_task`` opens the game
+for any MyWayHome task (``TASK_SCENARIOS``). The starts that are no scenario's (spot 10 or 16
+facing exactly east) are placed with script 4 in the patched shipped wad, as above.
 
 Reading the pose back
 ---------------------
@@ -87,9 +94,10 @@ from functools import cache
 import numpy as np
 import vizdoom as vzd
 
+from simjax.envs.doom import icm_scenarios
 from simjax.envs.doom.doom_render import area_matrix
 from simjax.envs.doom.motion import FORWARD, NOOP, TURN_LEFT, TURN_RIGHT
-from simjax.envs.doom.mywayhome_map import PLAYER_START_XY, SPAWN_SPOTS
+from simjax.envs.doom.mywayhome_map import SPAWN_SPOTS
 from simjax.envs.doom.wad import Wad
 
 TICS_PER_STEP = 4
@@ -97,12 +105,15 @@ LIVING_REWARD_PER_TIC = -0.0001  # the scenario's; our tasks have none
 GOAL_REWARD = 1.0
 SCREEN_H, SCREEN_W = 120, 160
 
-# The start poses of our three MyWayHome tasks, as ``start`` for MyWayHome.new_episode:
-# None = the scenario's own rule (ENTER script: random spot of 17, random angle).
-TASK_STARTS = {
-    "maze-dense": None,
-    "maze-sparse": (float(SPAWN_SPOTS[16][0]), float(SPAWN_SPOTS[16][1]), 0.0),
-    "maze-very-sparse": (float(PLAYER_START_XY[0]), float(PLAYER_START_XY[1]), 0.0),
+# How ViZDoom plays each MyWayHome task: (the ICM scenario whose wad it loads, its ENTER script
+# placing the player; or None: the patched shipped wad, with the player placed at ``start``, an
+# (x, y, angle_deg) for MyWayHome.new_episode)
+TASK_SCENARIOS = {
+    "maze-dense": ("dense", None),
+    "maze-sparse": ("sparse", None),
+    "maze-very-sparse": ("very-sparse", None),
+    "maze-spot10-east": (None, (float(SPAWN_SPOTS[10][0]), float(SPAWN_SPOTS[10][1]), 0.0)),
+    "maze-spot16-east": (None, (float(SPAWN_SPOTS[16][0]), float(SPAWN_SPOTS[16][1]), 0.0)),
 }
 
 _BUTTON_OF_ACTION = {TURN_LEFT: "TURN_LEFT", TURN_RIGHT: "TURN_RIGHT", FORWARD: "MOVE_FORWARD"}
@@ -207,19 +218,24 @@ class MyWayHome:
     ``seed`` seeds ViZDoom (``set_seed``) before the first episode; ``new_episode(seed=s)``
     reseeds, so the same seed and actions give the same episode, pose for pose and pixel for
     pixel. ``patched=False`` loads the shipped wad unchanged (then ``start`` is unavailable);
-    it exists for the test that the patch changes nothing else.
+    it exists for the test that the patch changes nothing else. ``scenario`` (dense, sparse or
+    very-sparse) loads that ICM wad unchanged instead: its ENTER script places the player, and
+    ``start`` is unavailable.
     """
 
-    def __init__(self, seed: int = 0, *, depth: bool = True, patched: bool = True):
+    def __init__(self, seed: int = 0, *, depth: bool = True, patched: bool = True, scenario: str | None = None):
         self._tmpdir = None
         game = vzd.DoomGame()
         game.load_config(os.path.join(vzd.scenarios_path, "my_way_home.cfg"))
-        if patched:
+        if scenario is not None:
+            game.set_doom_scenario_path(str(icm_scenarios.wad_path(scenario)))
+            patched = False
+        elif patched:
             self._tmpdir = tempfile.mkdtemp(prefix="simjax_vizdoom_")
             game.set_doom_scenario_path(
                 write_patched_wad(os.path.join(self._tmpdir, "my_way_home_place.wad"))
             )
-        self.patched = patched
+        self.patched, self.scenario = patched, scenario
         game.set_window_visible(False)
         game.set_screen_format(vzd.ScreenFormat.RGB24)
         game.set_screen_resolution(vzd.ScreenResolution.RES_160X120)
@@ -275,7 +291,7 @@ class MyWayHome:
             game.new_episode()
         else:
             if not self.patched:
-                raise ValueError("start needs the patched wad (MyWayHome(patched=True))")
+                raise ValueError("start needs the patched shipped wad (MyWayHome(patched=True), no scenario)")
             x, y, angle_deg = (float(v) for v in start)
             fx, fy = round(x * 65536), round(y * 65536)
             fa = round((angle_deg % 360.0) / 360.0 * 65536) % 65536
@@ -364,6 +380,16 @@ class MyWayHome:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def open_task(task: str, seed: int = 0, *, depth: bool = True) -> tuple[MyWayHome, tuple | None]:
+    """ViZDoom playing MyWayHome task ``task`` (one of ``TASK_SCENARIOS``) and the ``start`` to
+    give ``new_episode``: (the game, None) for the paper's tasks, whose ICM wad places the
+    player; (the patched shipped wad, the pose) for the starts no scenario has."""
+    if task not in TASK_SCENARIOS:
+        raise ValueError(f"ViZDoom plays {', '.join(TASK_SCENARIOS)}, not {task!r}")
+    scenario, start = TASK_SCENARIOS[task]
+    return MyWayHome(seed, depth=depth, scenario=scenario), start
 
 
 # ---------------------------------------------------------------------------------------------
@@ -473,7 +499,8 @@ __all__ = [
     "GOAL_REWARD",
     "LIVING_REWARD_PER_TIC",
     "MyWayHome",
-    "TASK_STARTS",
+    "TASK_SCENARIOS",
+    "open_task",
     "TICS_PER_STEP",
     "area_weights",
     "patched_behavior",
