@@ -3,12 +3,13 @@
 Each compiled call trains ``config.updates_per_log`` updates of every member of the batch, one
 per sweep point and seed (``simjax.runs.grid``; a plain run's members are its seeds), as one
 ``jax.vmap``; its metrics become one row per member in metrics.csv. The checkpoint, every
-member's whole state (hundreds of MB a seed with Adam's moments), is rewritten after a row
-once ``checkpoint_every`` seconds have passed since the last one (0: after every row), at the
-end, and when the run is stopped by Ctrl-C or SIGTERM, so a stopped run goes on bit for bit
-with ``resume``; a killed one (SIGKILL, a crash) goes on from its last checkpoint, the rows
-after it dropped and trained again, to the same numbers. A run whose losses, gradient norm
-or parameters stop being finite ends at that row (``Diverged``), its last finite state saved.
+member's whole state (42 MiB a SIM seed, two thirds of it Adam's moments), and beside it the
+export (``folder.write_export``) are rewritten after a row once ``checkpoint_every`` seconds
+have passed since the last (0: after every row), at the end, and when the run is stopped by
+Ctrl-C or SIGTERM, so a stopped run goes on bit for bit with ``resume``; a killed one (SIGKILL,
+a crash) goes on from its last checkpoint, the rows after it dropped and trained again, to the
+same numbers. A run whose losses, gradient norm or parameters stop being finite ends at that
+row (``Diverged``), its last finite state saved.
 
 With several local devices (GPUs, or CPU devices made with
 ``--xla_force_host_platform_device_count``), the members are sharded over them (a
