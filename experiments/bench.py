@@ -34,7 +34,12 @@ Measures, each as the median of several calls of one compiled program (compile t
 (``--xla_force_host_platform_device_count=2``), each in a fresh process. ``--only compile``
 times the compiles of the two programs a run starts with, the seed-vmapped ``init`` and the
 chunk, for each method at 16 envs and 3 seeds. ``--only ec`` runs EC's two costs alone: its
-loop at 3 seeds (what its runs train) and its pretraining's updates.
+loop at 3 seeds (what its runs train) and its pretraining's updates. ``--only loop`` runs the
+training loop's rows alone, for the seed counts in ``--seeds`` (e.g. ``1,16,48`` on a GPU).
+
+Everything runs at ``--precision`` (a run's default unless given; ``simjax.runtime``), and each
+section names the machine's devices, the JAX version and that precision, so a GPU's sections sit
+beside the CPU's.
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 
+from simjax import runtime
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import TASK_NAMES, make
 
@@ -69,6 +75,15 @@ def time_call(fn, *args, repeats: int = 5):
         jax.block_until_ready(compiled(*args))
         times.append(time.perf_counter() - t0)
     return compile_s, statistics.median(times), times
+
+
+def machine_line(peak: float, precision: str) -> str:
+    """What the numbers were measured on: cores, devices, JAX, the matmul precision, the peak."""
+    devices = jax.devices()
+    kinds = ", ".join(sorted({d.device_kind for d in devices}))
+    return (f"Machine: {os.cpu_count()} cores, {platform.machine()}; {len(devices)} {jax.default_backend()} "
+            f"device(s): {kinds}; jax {jax.__version__}; matmul precision {precision}; "
+            f"float32 2048x2048 matmul peak measured now at that precision: {peak / 1e9:.0f} GFLOP/s.")
 
 
 def matmul_peak(n: int = 2048, repeats: int = 5) -> float:
@@ -374,13 +389,14 @@ def devices_probe(task: str, seeds: int = 2, num_envs: int = 16, updates: int = 
     return {"devices": len(jax.local_devices()), "seeds": seeds, "steps_per_s": steps / med, "compile_s": compile_s}
 
 
-def bench_devices(task: str) -> list[dict]:
+def bench_devices(task: str, precision: str) -> list[dict]:
     """``devices_probe`` in fresh processes with one CPU device and with two."""
     results = []
     for n in (1, 2):
         env = os.environ | {"XLA_FLAGS": (os.environ.get("XLA_FLAGS", "")
                                           + f" --xla_force_host_platform_device_count={n}").strip()}
-        out = subprocess.run([sys.executable, __file__, "--devices-probe", "--task", task], env=env, check=True,
+        out = subprocess.run([sys.executable, __file__, "--devices-probe", "--task", task, "--precision", precision],
+                             env=env, check=True,
                              capture_output=True, text=True).stdout
         results.append(json.loads(out.strip().splitlines()[-1]))
     return results
@@ -488,15 +504,24 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile", "ec"), default=None,
-                        help="run only the sweep-overhead, the device-count, the Gymnasium, the compile-time or "
-                             "EC's rows (its loop at 3 seeds, its pretraining's updates)")
+    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile", "ec", "loop"), default=None,
+                        help="run only the sweep-overhead, the device-count, the Gymnasium, the compile-time, "
+                             "EC's rows (its loop at 3 seeds, its pretraining's updates) or the training loop's")
+    parser.add_argument("--seeds", default="1,2,3,4", help="--only loop: the seed counts (default 1,2,3,4)")
+    parser.add_argument("--precision", choices=tuple(runtime.MATMUL_PRECISIONS), default=TrainConfig.precision,
+                        help=f"float32 matmul precision, as simjax.train's (default: {TrainConfig.precision})")
     args = parser.parse_args(argv)
-    if args.devices_probe:
-        print(json.dumps(devices_probe(args.task)))
-        return 0
-    if args.only:
-        return report_only(args)
+    with runtime.matmul_precision(args.precision):
+        if args.devices_probe:
+            print(json.dumps(devices_probe(args.task)))
+            return 0
+        if args.only:
+            return report_only(args)
+        return report_all(args)
+
+
+def report_all(args) -> int:
+    """Every measurement, as one section."""
 
     started = time.time()
     peak = matmul_peak()
@@ -518,8 +543,7 @@ def main(argv=None) -> int:
     lines = [
         f"## {dt.date.today().isoformat()}: `make bench` ({args.task})",
         "",
-        f"Machine: {os.cpu_count()} cores, {platform.machine()}, jax {jax.__version__}; "
-        f"float32 2048x2048 matmul peak measured now: {peak / 1e9:.0f} GFLOP/s.",
+        machine_line(peak, args.precision),
         "",
         "| what | envs | agent steps/s | compile s | FLOPs / agent step | share of matmul peak |",
         "|---|---:|---:|---:|---:|---:|",
@@ -595,10 +619,10 @@ def loop_lines(loops: list[dict], flops: dict, peak: float) -> list[str]:
              "program on one device), agent steps/s over all seeds:", "",
              "| method | seeds | agent steps/s | per seed | compile s | share of matmul peak |",
              "|---|---:|---:|---:|---:|---:|"]
-    for r in loops:
-        share = flops[r["algo"]] * r["steps_per_s"] / peak
+    for r in loops:  # (--only loop counts no FLOPs: its share is left empty)
+        share = f"{100 * flops[r['algo']] * r['steps_per_s'] / peak:.0f}%" if r["algo"] in flops else ""
         lines.append(f"| {r['algo'].upper()} | {r['seeds']} | {r['steps_per_s']:,.0f} | {r['steps_per_s'] / r['seeds']:,.0f} | "
-                     f"{r['compile_s']:.1f} | {100 * share:.0f}% |")
+                     f"{r['compile_s']:.1f} | {share} |")
     return lines
 
 
@@ -649,20 +673,23 @@ def ec_lines(loop: dict, pre: dict) -> list[str]:
 
 
 def report_only(args) -> int:
-    """Only the sweep-overhead, device-count, Gymnasium, compile-time or EC rows, as their own section."""
+    """Only the sweep-overhead, device-count, Gymnasium, compile-time, EC or loop rows, as their own section."""
     started = time.time()
     peak = matmul_peak()
-    lines = [f"## {dt.date.today().isoformat()}: `python experiments/bench.py --only {args.only}` ({args.task})", "",
-             f"Machine: {os.cpu_count()} cores, jax {jax.__version__}; float32 matmul peak measured now: "
-             f"{peak / 1e9:.0f} GFLOP/s.", ""]
+    command = " ".join(["python experiments/bench.py --only", args.only] + (["--seeds", args.seeds] if args.only == "loop" else [])
+                       + (["--precision", args.precision] if args.precision != TrainConfig.precision else []))
+    lines = [f"## {dt.date.today().isoformat()}: `{command}` ({args.task})", "", machine_line(peak, args.precision), ""]
     if args.only == "sweep":
         lines += sweep_lines(bench_sweep(args.task))
     elif args.only == "devices":
-        lines += device_lines(bench_devices(args.task))
+        lines += device_lines(bench_devices(args.task, args.precision))
     elif args.only == "compile":
         lines += compile_lines([bench_compile(args.task, algo) for algo in ("a2c", "sim", "rnd", "icm", "ec")])
     elif args.only == "ec":
         lines += ec_lines(bench_loop(args.task, "ec", 3), bench_ec_pretraining(args.task))
+    elif args.only == "loop":
+        seeds = [int(n) for n in args.seeds.split(",")]
+        lines += loop_lines([bench_loop(args.task, algo, n) for algo in LOOP_ALGOS for n in seeds], {}, peak)
     else:
         lines += gymnasium_lines(bench_gymnasium(args.task))
     lines += ["", f"Took {time.time() - started:.0f} s.", ""]

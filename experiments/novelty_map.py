@@ -6,11 +6,12 @@ came near each spot.
 
 For a run on a MyWayHome task (``simjax.envs.is_mywayhome``: any look) with a novelty model (sim,
 rnd, icm, ec). From every spawn spot, ``--walks`` uniform random walks of ``--steps`` steps
-(random headings) are scored by the checkpoint's novelty model with its own running observation
-statistics; only transitions whose window lies wholly inside the walk count. EC's error is its
-novelty beta - C(M, e) (the bonus before alpha), each walk with an episodic memory of its own
-that starts with the walk's first frame, as an episode's does. The policy's side: 16 episodes
-per seed from the run's own task, and the fraction of them that came within 96 units of each spot.
+(random headings) are scored by the run's novelty model (its checkpoint's, or its export's)
+with its own running observation statistics; only transitions whose window lies wholly inside
+the walk count. EC's error is its novelty beta - C(M, e) (the bonus before alpha), each walk
+with an episodic memory of its own that starts with the walk's first frame, as an episode's
+does. The policy's side: 16 episodes per seed from the run's own task, and the fraction of them
+that came within 96 units of each spot.
 
 Prints per spot: distance from the run's start (its task's spawn spot; spot 10, the map's own
 player start, for maze-dense, whose episodes start anywhere), the policy's visit
@@ -71,7 +72,7 @@ def main(argv=None) -> int:
     model = trainer.novelty.model
     if args.steps <= model.history + 1:
         parser.error(f"--steps must exceed the model's window ({model.history + 1} frames)")
-    runner = restored.runner()
+    novelty_params, obs_stats = restored.novelty()  # every seed's; the export has them without the checkpoint
 
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
     xy = np.asarray([mywayhome_map.SPAWN_SPOTS[s] for s in spots])
@@ -82,7 +83,7 @@ def main(argv=None) -> int:
     policy_run = jax.jit(lambda p, k: episodes(env, trainer.network, p, k, 16))
     visits = []
     for i in range(config.num_seeds):
-        params = jax.tree.map(lambda x, i=i: x[i], runner.params["policy"])
+        params = restored.policy(i)
         pos, alive, _ = jax.device_get(policy_run(params, jax.random.PRNGKey(123)))
         near = np.zeros(len(spots))
         for n in range(pos.shape[1]):
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
     walks, _ = build_timeline(memory, obs, reset, actions, last_obs, jnp.zeros((n,), bool))
     full = np.arange(args.steps) >= model.history  # the whole window lies in the walk
 
-    has_target = "target" in runner.params["novelty"] and getattr(model, "target", "rnd") == "rnd"
+    has_target = "target" in novelty_params and getattr(model, "target", "rnd") == "rnd"
 
     @jax.jit
     def score(params, obs_stats, frames, actions, segment, valid):  # the walks as arguments, not constants XLA would fold
@@ -124,8 +125,7 @@ def main(argv=None) -> int:
 
     errors, spreads = [], []
     for i in range(config.num_seeds):
-        params = jax.tree.map(lambda x, i=i: x[i], runner.params["novelty"])
-        stats = jax.tree.map(lambda x, i=i: x[i], runner.novelty.obs_stats)
+        params, stats = jax.tree.map(lambda x, i=i: x[i], (novelty_params, obs_stats))
         error, scored, target = jax.device_get(score(params, stats, walks.frames, walks.actions, walks.segment, walks.valid))
         mask = np.asarray(scored) & full[:, None] & ongoing
         errors.append((np.asarray(error), mask))

@@ -1,5 +1,5 @@
-"""Where a trained policy goes: one episode per environment from a run's checkpoint, drawn
-from above, with how much of the map it covers and how close it gets to the goal.
+"""Where a trained policy goes: one episode per environment from a run's checkpoint (or its
+export/), drawn from above, with how much of the map it covers and how close it gets to the goal.
 
     python experiments/trajectories.py RUN_DIR [--envs 16] [--random]
 

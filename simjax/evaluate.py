@@ -16,7 +16,7 @@ and one of the MyWayHome tasks. ``simjax`` plays all episodes at once (``jax.vma
 
 Prints a table (success ratio with its 95% Wilson interval, mean episode length) and writes
 ``RUN/evaluate-<backend>.json`` (``-seedK`` added for runs of several seeds) with the numbers,
-the command, the date, the versions and the run's step count at its checkpoint. On MyWayHome
+the command, the date, the versions and the run's step count at its checkpoint (or export/). On MyWayHome
 it also says where the episodes end (each one's position before its last step): their mean
 distance from the goal and how many end nearest each of the map's 17 spawn spots, so that a
 policy that never succeeds can still be compared across the two backends.
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from simjax import flags, runtime
-from simjax.runs.folder import atomic_write, load_checkpoint, load_config, restore
+from simjax.runs.folder import EXPORT, atomic_write, has_export, load_checkpoint, load_config, load_export, restore
 
 BACKENDS = ("vizdoom", "simjax")
 VIDEO_FRAMES = 150  # at most this many GIF frames per episode (longer episodes are subsampled)
@@ -46,7 +46,7 @@ VIEW_SCALE = 5  # the 42x42 view is drawn 210x210 in the GIF
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m simjax.evaluate", description=__doc__.split("\n\n")[0])
-    parser.add_argument("run", type=Path, help="run folder (config.json, checkpoint.msgpack)")
+    parser.add_argument("run", type=Path, help="run folder (config.json, and checkpoint.msgpack or export/)")
     parser.add_argument("--backend", choices=BACKENDS, required=True,
                         help="vizdoom: the real game; simjax: simjax's own env")
     parser.add_argument("--episodes", type=flags.whole_number, default=200, help="policy episodes per seed (default 200)")
@@ -73,9 +73,10 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
         config = load_config(args.run)
     except (FileNotFoundError, ValueError, TypeError) as err:
         parser.error(str(err))
-    if not (args.run / "checkpoint.msgpack").exists():
-        parser.error(f"{args.run} has no checkpoint.msgpack: checkpoints are not kept in git (only config.json "
-                     f"and metrics.csv are). Copy it from the machine that trained the run, or train it again "
+    checkpointed = (args.run / "checkpoint.msgpack").exists()
+    if not checkpointed and not has_export(args.run):
+        parser.error(f"{args.run} has no checkpoint.msgpack and no {EXPORT}/: they are not kept in git (only config.json "
+                     f"and metrics.csv are). Copy one from the machine that trained the run, or train it again "
                      f"with its own settings: python -m simjax.train --resume {args.run} (from step 0; this "
                      f"rewrites its metrics.csv)")
     if args.episodes < 1:
@@ -105,7 +106,7 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
     if args.video is not None and (getattr(env, "generator", None) is not None or not hasattr(env, "layout")):
         parser.error(f"--video draws the path on a fixed map; {config.env} has none")
     try:
-        load_checkpoint(args.run)
+        load_checkpoint(args.run) if checkpointed else load_export(args.run)
     except ValueError as err:
         parser.error(str(err))
     return config, env, limit

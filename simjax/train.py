@@ -73,6 +73,7 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
             parser.error("--resume continues a run with its own config.json; give no run settings and no --out")
         try:
             config = folder.load_config(args.resume)
+            folder.check_resumable(args.resume)
             if (args.resume / "checkpoint.msgpack").exists():
                 folder.load_checkpoint(args.resume)
             if (args.resume / PRETRAIN_STATE).exists():

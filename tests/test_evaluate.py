@@ -58,6 +58,22 @@ def test_simjax_backend_all_seeds_and_determinism(run_dir, capsys):
     assert (again["policy"], again["random"]) == (first[0]["policy"], first[0]["random"])
 
 
+def test_a_folder_with_the_export_and_no_checkpoint_evaluates_as_the_checkpoint_does(run_dir, tmp_path):
+    """What a GPU run brings back: config.json and export/ (the checkpoint is too large to copy)."""
+    exported = tmp_path / "run"
+    exported.mkdir()
+    shutil.copy(run_dir / "config.json", exported / "config.json")
+    shutil.copytree(run_dir / "export", exported / "export")
+    args = ["--backend", "simjax", "--episodes", "2", "--max-steps", "20", "--quiet", "--seed-index", "1"]
+    assert evaluate.main([str(run_dir), *args]) == 0
+    assert evaluate.main([str(exported), *args]) == 0
+    records = [json.loads((d / "evaluate-simjax-seed1.json").read_text()) for d in (run_dir, exported)]
+    drop = ("run", "command", "date")
+    assert [{k: v for k, v in r.items() if k not in drop} for r in records][1:] == [
+        {k: v for k, v in records[0].items() if k not in drop}]
+    assert records[1]["env_steps"] == 8 and records[1]["seed"] == 1
+
+
 def test_vizdoom_backend_and_video(run_dir, tmp_path):
     video = tmp_path / "episodes.gif"
     args = [str(run_dir), "--backend", "vizdoom", "--episodes", "2", "--max-steps", "20", "--quiet",
@@ -120,7 +136,7 @@ def test_missing_runs_checkpoints_and_other_tasks_are_refused(run_dir, tmp_path,
     with pytest.raises(SystemExit):
         evaluate.main([str(bare), "--backend", "vizdoom"])
     err = capsys.readouterr().err
-    assert "has no checkpoint.msgpack" in err and "not kept in git" in err and "--resume" in err
+    assert "has no checkpoint.msgpack and no export/" in err and "not kept in git" in err and "--resume" in err
     tiny = tmp_path / "tiny"
     tiny.mkdir()
     runs.write_config(tiny, TrainConfig(env="maze-tiny"))

@@ -5,6 +5,7 @@ import csv
 import glob
 import json
 import os
+import shutil
 import signal
 import struct
 import subprocess
@@ -25,23 +26,88 @@ from simjax.runs import training
 
 
 @pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY
-def test_restore_reads_a_run_back(tmp_path):
+def test_restore_reads_a_run_back_from_its_checkpoint_or_from_its_export_alone(tmp_path, capsys):
     config = TrainConfig(**RND_TINY, total_steps=40)
-    runs.run(config, tmp_path / "run", quiet=True)
-    restored = runs.restore(tmp_path / "run")
+    run = runs.run(config, tmp_path / "run", quiet=True)
+    restored = runs.restore(run)
     assert restored.config == config and restored.env_steps == 40 and restored.seeds == [0, 1]
-    saved = runs.load_checkpoint(tmp_path / "run")["runner"]
+    saved = runs.load_checkpoint(run)["runner"]
     policy = restored.policy()
     np.testing.assert_array_equal(policy["params"]["Dense_0"]["kernel"], saved["params"]["policy"]["params"]["Dense_0"]["kernel"])
     one = restored.runner(1)
     chex.assert_trees_all_equal(one.params["policy"], jax.tree.map(lambda x: x[1], policy))
     assert one.novelty.obs_stats.mean.shape == restored.env.observation_size
     assert restored.network is restored.trainer.network
-    with pytest.raises(FileNotFoundError, match="no checkpoint.msgpack"):
-        (tmp_path / "run" / "checkpoint.msgpack").unlink()
-        runs.restore(tmp_path / "run")
+    trajectories = _experiment("trajectories")
+    assert trajectories.main([str(run), "--envs", "2"]) == 0
+    drawn = capsys.readouterr().out
+
+    # without the checkpoint: the export, every file of it small enough to copy off a GPU machine
+    assert [f.name for f in (run / "export").iterdir()] == ["40-1-of-1.msgpack"]
+    assert (run / "export" / "40-1-of-1.msgpack").stat().st_size < 16 * 2**20
+    (run / "checkpoint.msgpack").rename(tmp_path / "checkpoint.msgpack")
+    back = runs.restore(run)
+    assert back.exported and (back.config, back.env_steps, back.seeds) == (config, 40, [0, 1])
+    chex.assert_trees_all_equal(back.policy(), policy)
+    chex.assert_trees_all_equal(back.novelty(1), (one.params["novelty"], one.novelty.obs_stats))
+    with pytest.raises(FileNotFoundError, match="not the whole runner state"):
+        back.runner()
+    assert trajectories.main([str(run), "--envs", "2"]) == 0
+    assert capsys.readouterr().out == drawn
+    with pytest.raises(SystemExit):  # it would train again from step 0 over the export
+        cli.main(["--resume", str(run), "--quiet"])
+    assert "has its export but no checkpoint.msgpack" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match="a fork goes on from the whole state"):
+        runs.fork(run, tmp_path / "fork", {"total_steps": 80})
+    with pytest.raises(FileNotFoundError, match="no checkpoint.msgpack and no export/"):
+        shutil.rmtree(run / "export")
+        runs.restore(run)
     with pytest.raises(FileNotFoundError, match="not a run folder"):
         runs.restore(tmp_path)
+
+
+def _experiment(name: str):
+    """experiments/NAME.py as a module (the folder is not a package)."""
+    import importlib
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.pop(0)
+
+
+def test_an_export_is_split_into_files_under_the_limit_and_read_back_whole(tmp_path, monkeypatch):
+    from simjax.runs import folder
+
+    rng = np.random.default_rng(0)
+    draw = lambda *shape: rng.standard_normal(shape).astype(np.float32)
+    runner = {"params": {"policy": {"params": {"Dense_0": {"kernel": draw(2, 300, 1000), "bias": draw(2, 1000)}}},
+                         "novelty": {"target": {"w": draw(2, 40, 50)}}},
+              "novelty": {"obs_stats": {"mean": draw(2, 7), "count": np.ones(2, np.float32)}, "memory": draw(2, 9)},
+              "opt_state": {"mu": draw(2, 300, 1000)}}
+    monkeypatch.setattr(folder, "EXPORT_PART_BYTES", 500_000)  # a kernel of a member, 1.2 MB, is cut in three
+    folder.write_export(tmp_path, runner, 40, [0, 1])
+    files = sorted(f.name for f in (tmp_path / "export").iterdir())
+    assert files == [f"40-{k}-of-6.msgpack" for k in range(1, 7)]  # per member 3: a cut each, the small arrays beside the last
+    from flax import serialization
+
+    for f in files:
+        arrays = serialization.msgpack_restore((tmp_path / "export" / f).read_bytes())["arrays"]
+        assert sum(np.asarray(a).nbytes for a in arrays.values()) <= 500_000
+    exported = {k: runner[k] for k in ("params",)} | {"novelty": {"obs_stats": runner["novelty"]["obs_stats"]}}
+    back = folder.load_export(tmp_path)
+    assert (back["env_steps"], back["seeds"]) == (40, [0, 1])
+    chex.assert_trees_all_equal(back["runner"], exported)  # not Adam's moments, not the novelty memory
+    # a kill while the next export is written leaves part of it: the whole one before it is read
+    shutil.copy(tmp_path / "export" / files[0], tmp_path / "export" / "80-1-of-6.msgpack")
+    assert folder.load_export(tmp_path)["env_steps"] == 40
+    folder.write_export(tmp_path, runner, 120, [0, 1])  # a whole new one replaces every older file
+    assert sorted(f.name for f in (tmp_path / "export").iterdir()) == [f"120-{k}-of-6.msgpack" for k in range(1, 7)]
+    (tmp_path / "export" / "120-3-of-6.msgpack").write_bytes(b"\x05")
+    with pytest.raises(ValueError, match="120-3-of-6.msgpack is damaged"):
+        folder.load_export(tmp_path)
 
 
 def read_events(folder) -> dict:

@@ -9,8 +9,9 @@
 # warm machine), stopping it cleanly (SIGTERM keeps rows and checkpoint) if it would leave less
 # than FIGURES_S seconds of the SECONDS this call has; then, with the time left, draws the run's
 # trajectories and novelty map there (the checkpoint is too large to bring back) and copies
-# config.json, metrics.csv, curve.png, the figures' files and device_log.txt (commit, GPU, JAX
-# version, precision, wall times, the whole output) to $OUT. Training compiles at the run's own
+# config.json, metrics.csv, curve.png, export/ (every seed's policy and novelty model, in files
+# under 16 MiB), the figures' files and device_log.txt (commit, GPU, JAX version, precision, wall
+# times, the whole output) to $OUT. Training compiles at the run's own
 # --precision (config.json; highest unless given); JAX_DEFAULT_MATMUL_PRECISION, highest unless
 # set, is what the figures' scripts run at.
 set -u
@@ -66,5 +67,7 @@ fi
 for f in config.json metrics.csv curve.png trajectories.png trajectories.txt novelty_map.png novelty_map.txt; do
     [ -s "$run/$f" ] && cp "$run/$f" "$OUT/"
 done
+# the policies and novelty models, in files under 16 MiB: evaluate and the figures' scripts read them here
+[ -d "$run/export" ] && cp -r "$run/export" "$OUT/"
 say "done"
 tail -n 30 "$log"

@@ -9,6 +9,10 @@
     checkpoint.msgpack  the runner state of every seed as of a metrics row (rewritten atomically
                         every ``--checkpoint-every`` seconds, at the end and when stopped; a
                         killed run keeps the last, and resuming drops the rows after it)
+    export/             the policy, the novelty model and its frame statistics of every seed
+                        as of the checkpoint (not Adam's moments, the environments, the novelty
+                        memory), in files of at most 15 MiB (``write_export``): what evaluating
+                        needs, small enough to copy off a GPU machine without the checkpoint
     pretrain.csv        EC only: its reachability network's pretraining, one row per seed per chunk
     pretrain_state.msgpack  EC only, while it pretrains: the pretraining after its last chunk
                         (``resume`` goes on from it); removed once the checkpoint after the
@@ -18,7 +22,8 @@
     tensorboard/seedK/  with ``--tensorboard``: metrics.csv's values as TensorBoard scalars
 
 ``restore(folder)`` reads a run back for whatever goes on from it: resuming, forking,
-evaluating, the experiments' diagnostics.
+evaluating, the experiments' diagnostics (these last from the export alone where the folder
+has no checkpoint).
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import functools
 import json
 import math
 import os
+import re
 import signal
 import threading
 from pathlib import Path
@@ -274,6 +280,122 @@ def checkpoint_steps(run_dir: Path) -> int:
         return -1
 
 
+# -- export/ ----------------------------------------------------------------------------------------
+
+EXPORT = "export"
+# what of a runner's state dict the export keeps: what evaluating a policy and reading its novelty
+# model need (the policy, the novelty model, the frame statistics it normalises with), not Adam's
+# moments, the environments or the novelty memory, which only training on needs
+EXPORTED = (("params", "policy"), ("params", "novelty"), ("novelty", "obs_stats"))
+# each file's arrays stay under this, so that each can be copied off a machine that brings back
+# files of at most 16 MiB
+EXPORT_PART_BYTES = 15 * 2**20
+_PART_NAME = re.compile(r"(\d+)-(\d+)-of-(\d+)\.msgpack")
+
+
+def _exported(runner) -> dict:
+    """The ``EXPORTED`` subtrees of ``runner`` (a RunnerState or its state dict) on the host,
+    flat: {"params/policy/params/Dense_0/kernel": array (members, ...), ...}."""
+    import jax
+    from flax import serialization, traverse_util
+
+    state = serialization.to_state_dict(runner)
+    picked = {}
+    for outer, inner in EXPORTED:
+        if isinstance(state.get(outer), dict) and inner in state[outer]:
+            picked.setdefault(outer, {})[inner] = state[outer][inner]
+    return traverse_util.flatten_dict(jax.device_get(picked), sep="/")
+
+
+def write_export(run_dir: Path, runner, env_steps: int, seeds: list[int]) -> None:
+    """export/: the ``EXPORTED`` parts of ``runner`` (every member's) at ``env_steps``, in files
+    ``STEPS-K-of-N.msgpack`` of at most ``EXPORT_PART_BYTES`` of arrays each (an array larger
+    than that is cut along its first axis). Each file is written atomically and the older
+    export's files are removed only once the new one is whole, so a run killed mid-export
+    keeps one it can read."""
+    import numpy as np
+    from flax import serialization
+
+    pieces = []  # (name, array): member m's slice of a leaf, cut j of it
+    flat = _exported(runner)
+    members = len(seeds)
+    for m in range(members):
+        for path, leaf in flat.items():
+            piece = np.asarray(leaf[m])
+            cuts = max(1, -(-piece.nbytes // EXPORT_PART_BYTES)) if piece.ndim else 1
+            for j, cut in enumerate(np.array_split(piece, cuts) if cuts > 1 else [piece]):
+                pieces.append((f"{m}/{j}/{path}", cut))
+    parts, size = [{}], 0
+    for name, array in pieces:
+        if size and size + array.nbytes > EXPORT_PART_BYTES:
+            parts.append({})
+            size = 0
+        parts[-1][name] = array
+        size += array.nbytes
+    folder = Path(run_dir) / EXPORT
+    folder.mkdir(exist_ok=True)
+    names = [f"{env_steps}-{k + 1}-of-{len(parts)}.msgpack" for k in range(len(parts))]
+    for k, (name, arrays) in enumerate(zip(names, parts)):
+        record = {"env_steps": env_steps, "seeds": list(seeds), "part": k + 1, "parts": len(parts), "arrays": arrays}
+        atomic_write(folder / name, serialization.msgpack_serialize(record))
+    for old in folder.iterdir():
+        if old.name not in names:
+            old.unlink()
+
+
+def has_export(run_dir: Path) -> bool:
+    return any(_PART_NAME.fullmatch(f.name) for f in (Path(run_dir) / EXPORT).glob("*.msgpack"))
+
+
+def load_export(run_dir: Path) -> dict:
+    """The newest whole export, as ``load_checkpoint`` gives a checkpoint: {"runner": the state
+    dict of ``EXPORTED`` only (leading axis: member), "env_steps", "seeds"}. A ValueError names
+    a file that does not read as one, or a folder without a whole export."""
+    import numpy as np
+    from flax import serialization, traverse_util
+
+    folder = Path(run_dir) / EXPORT
+    found = {}  # (steps, parts) -> {part: path}
+    for f in folder.glob("*.msgpack"):
+        match = _PART_NAME.fullmatch(f.name)
+        if match:
+            steps, k, n = map(int, match.groups())
+            found.setdefault((steps, n), {})[k] = f
+    whole = [key for key, files in found.items() if set(files) == set(range(1, key[1] + 1))]
+    if not whole:
+        raise ValueError(f"{folder} holds no whole export (files STEPS-K-of-N.msgpack for every K)")
+    (steps, n) = max(whole)
+    pieces, seeds = {}, None
+    for k in range(1, n + 1):
+        path = found[(steps, n)][k]
+        try:
+            record = serialization.msgpack_restore(path.read_bytes())
+            ok = (int(record["env_steps"]), int(record["part"]), int(record["parts"])) == (steps, k, n)
+            arrays, seeds = record["arrays"], [int(s) for s in record["seeds"]]
+        except (ValueError, TypeError, KeyError) as err:
+            raise ValueError(f"{path} is damaged ({err!r})") from None
+        if not ok:
+            raise ValueError(f"{path} is damaged (its record is not part {k} of {n} at {steps} steps)")
+        for name, array in arrays.items():
+            m, j, leaf = name.split("/", 2)
+            pieces.setdefault(leaf, {}).setdefault(int(m), {})[int(j)] = np.asarray(array)
+    flat = {}
+    for leaf, by_member in pieces.items():
+        cuts = [by_member[m] for m in sorted(by_member)]
+        flat[leaf] = np.stack([np.concatenate([c[j] for j in sorted(c)]) if len(c) > 1 else c[0] for c in cuts])
+    return {"runner": traverse_util.unflatten_dict(flat, sep="/"), "env_steps": steps, "seeds": seeds}
+
+
+def check_resumable(run_dir: Path) -> None:
+    """A FileNotFoundError for a folder that has an export but no checkpoint: resumed, it would
+    train again from step 0 and replace the export."""
+    run_dir = Path(run_dir)
+    if not (run_dir / "checkpoint.msgpack").exists() and has_export(run_dir):
+        raise FileNotFoundError(
+            f"{run_dir} has its export but no checkpoint.msgpack, so --resume would train it again from step 0 "
+            f"and replace the export; copy the checkpoint from the machine that trained it (or move {EXPORT}/ away)")
+
+
 # -- a run read back ----------------------------------------------------------------------------------
 
 
@@ -282,11 +404,15 @@ class Restored:
     built when first asked for, its task's ``env`` and the learner (``trainer``, ``network``).
 
     ``policy()`` rebuilds only the policy's parameters, so checkpoints whose env or novelty
-    state has since changed shape still give their policy; ``runner()`` rebuilds everything
-    (the novelty model and its memory too). ``state`` is the runner as saved (a state dict)."""
+    state has since changed shape still give their policy; ``novelty()`` the novelty model's
+    and its frame statistics; ``runner()`` rebuilds everything (the novelty model's memory,
+    Adam's moments too). ``state`` is the runner as saved (a state dict). Read from the export
+    (``exported``: the folder has no checkpoint), ``state`` holds only what the export keeps,
+    and ``runner()`` refuses."""
 
-    def __init__(self, folder: Path, config: TrainConfig, checkpoint: dict, env=None, sweep: dict | None = None):
-        self.folder, self.config, self.sweep = Path(folder), config, sweep or {}
+    def __init__(self, folder: Path, config: TrainConfig, checkpoint: dict, env=None, sweep: dict | None = None,
+                 exported: bool = False):
+        self.folder, self.config, self.sweep, self.exported = Path(folder), config, sweep or {}, exported
         self.state = checkpoint["runner"]
         self.env_steps, self.seeds = int(checkpoint["env_steps"]), [int(s) for s in checkpoint["seeds"]]
         if env is not None:
@@ -317,10 +443,23 @@ class Restored:
         params = serialization.from_state_dict(self._template.params["policy"], self.state["params"]["policy"])
         return params if seed_index is None else _pick(params, seed_index)
 
+    def novelty(self, seed_index: int | None = None):
+        """(the novelty model's parameters, its frames' running statistics): every seed's
+        (leading axis: seed), or seed ``seed_index``'s."""
+        from flax import serialization
+
+        template = self._template
+        both = (serialization.from_state_dict(template.params["novelty"], self.state["params"].get("novelty", {})),
+                serialization.from_state_dict(template.novelty.obs_stats, self.state["novelty"]["obs_stats"]))
+        return both if seed_index is None else _pick(both, seed_index)
+
     def runner(self, seed_index: int | None = None):
         """The whole RunnerState: every seed's (leading axis: seed), or seed ``seed_index``'s."""
         from flax import serialization
 
+        if self.exported:
+            raise FileNotFoundError(f"{self.folder} has no checkpoint.msgpack, and its {EXPORT}/ holds only the "
+                                    "policy, the novelty model and its frame statistics, not the whole runner state")
         runner = serialization.from_state_dict(self._template, self.state)
         return runner if seed_index is None else _pick(runner, seed_index)
 
@@ -332,10 +471,13 @@ def _pick(tree, index: int):
 
 
 def restore(folder: Path, env=None) -> Restored:
-    """Read the run in ``folder`` (config.json and checkpoint.msgpack); ``env`` replaces the
-    env its task would build. A FileNotFoundError says which file is missing."""
+    """Read the run in ``folder`` (config.json and checkpoint.msgpack, or without the
+    checkpoint its export); ``env`` replaces the env its task would build. A
+    FileNotFoundError says which file is missing."""
     folder = Path(folder)
     config = load_config(folder)
-    if not (folder / "checkpoint.msgpack").exists():
-        raise FileNotFoundError(f"{folder} has no checkpoint.msgpack")
-    return Restored(folder, config, load_checkpoint(folder), env, load_sweep(folder))
+    if (folder / "checkpoint.msgpack").exists():
+        return Restored(folder, config, load_checkpoint(folder), env, load_sweep(folder))
+    if has_export(folder):
+        return Restored(folder, config, load_export(folder), env, load_sweep(folder), exported=True)
+    raise FileNotFoundError(f"{folder} has no checkpoint.msgpack and no {EXPORT}/")

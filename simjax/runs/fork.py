@@ -20,7 +20,7 @@ import shutil
 from pathlib import Path
 
 from simjax.novelty.settings import flag
-from simjax.runs.folder import atomic_write, restore, seed_keys, write_checkpoint, write_config
+from simjax.runs.folder import EXPORT, atomic_write, restore, seed_keys, write_checkpoint, write_config, write_export
 
 # settings a fork may change: how it learns and what it is paid, not what it is
 FORKABLE = ("total_steps", "learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
@@ -54,6 +54,9 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
     if source.sweep:
         raise ValueError(f"{src} is a sweep ({', '.join(map(flag, source.sweep))}); a fork goes on from one run's "
                          "seeds, not from a grid of points")
+    if source.exported:
+        raise FileNotFoundError(f"{src} has no checkpoint.msgpack: a fork goes on from the whole state, "
+                                f"not from the policy in {EXPORT}/")
     if dst.exists():
         raise FileExistsError(f"{dst} exists; a fork writes a new run folder")
     bad = sorted(set(changes) - set(FORKABLE))
@@ -71,6 +74,7 @@ def fork(src: Path, dst: Path, changes: dict) -> list[str]:
     shutil.copyfile(src / "metrics.csv", dst / "metrics.csv")
     write_config(dst, config)
     write_checkpoint(dst, runner, source.env_steps, source.seeds)
+    write_export(dst, runner, source.env_steps, source.seeds)
     record = {
         "from": str(src), "env_steps": source.env_steps, "date": dt.date.today().isoformat(),
         "changed": {k: [getattr(source.config, k), v] for k, v in changes.items()}, "new_leaves": new_leaves,

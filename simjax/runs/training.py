@@ -3,12 +3,13 @@
 Each compiled call trains ``config.updates_per_log`` updates of every member of the batch, one
 per sweep point and seed (``simjax.runs.grid``; a plain run's members are its seeds), as one
 ``jax.vmap``; its metrics become one row per member in metrics.csv. The checkpoint, every
-member's whole state (hundreds of MB a seed with Adam's moments), is rewritten after a row
-once ``checkpoint_every`` seconds have passed since the last one (0: after every row), at the
-end, and when the run is stopped by Ctrl-C or SIGTERM, so a stopped run goes on bit for bit
-with ``resume``; a killed one (SIGKILL, a crash) goes on from its last checkpoint, the rows
-after it dropped and trained again, to the same numbers. A run whose losses, gradient norm
-or parameters stop being finite ends at that row (``Diverged``), its last finite state saved.
+member's whole state (42 MiB a SIM seed, two thirds of it Adam's moments), and beside it the
+export (``folder.write_export``) are rewritten after a row once ``checkpoint_every`` seconds
+have passed since the last (0: after every row), at the end, and when the run is stopped by
+Ctrl-C or SIGTERM, so a stopped run goes on bit for bit with ``resume``; a killed one (SIGKILL,
+a crash) goes on from its last checkpoint, the rows after it dropped and trained again, to the
+same numbers. A run whose losses, gradient norm or parameters stop being finite ends at that
+row (``Diverged``), its last finite state saved.
 
 With several local devices (GPUs, or CPU devices made with
 ``--xla_force_host_platform_device_count``), the members are sharded over them (a
@@ -41,6 +42,7 @@ from simjax.agents import TrainConfig
 from simjax.runs.folder import (
     MetricsLog,
     atomic_write,
+    check_resumable,
     load_checkpoint,
     metric_columns,
     rows_up_to,
@@ -48,6 +50,7 @@ from simjax.runs.folder import (
     stops_deferred,
     write_checkpoint,
     write_config,
+    write_export,
 )
 from simjax.runs.grid import batch_inputs, grid_of, members
 from simjax.runs.progress import Progress, mean_over_seeds
@@ -60,6 +63,13 @@ FINITE_TERMS = ("policy_loss", "value_loss", "entropy", "value_mean", "grad_norm
 
 # seconds between checkpoints (--checkpoint-every): at most this much training is lost to a kill
 CHECKPOINT_EVERY = 600.0
+
+
+def save_state(out: Path, runner, steps: int, seeds: list[int]) -> None:
+    """checkpoint.msgpack and export/ at ``steps``, from one copy of ``runner`` on the host."""
+    host = jax.device_get(runner)
+    write_checkpoint(out, host, steps, seeds)
+    write_export(out, host, steps, seeds)
 
 
 class Diverged(RuntimeError):
@@ -251,6 +261,8 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
 
     runtime.enable_compilation_cache()
     out = Path(out)
+    if resume:
+        check_resumable(out)
     out.mkdir(parents=True, exist_ok=True)
     versions = {m: __import__(m).__version__ for m in ("jax", "flax", "optax", "brax")}
     sweep = sweep or {}
@@ -294,7 +306,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
         on = f", on {len(sharding.mesh.devices)} devices" if sharding is not None else ""
         print(f"{what}: {config.algo} on {config.env} ({points}{config.num_seeds} seed(s), "
               f"{config.num_envs} envs each{on}); run folder {out}", file=sys.stderr, flush=True)
-    write_checkpoint(out, runner, done_steps, seeds)
+    save_state(out, runner, done_steps, seeds)
     pretrain_s = 0.0
     if trainer.pretrain is not None and done_steps < config.step_offset:
         began = time.perf_counter()
@@ -302,7 +314,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
                                    sharding, resume)
         done_steps, pretrain_s = config.step_offset, time.perf_counter() - began + earlier
         with stops_deferred():  # the checkpoint after the pretraining, then its state is not needed
-            write_checkpoint(out, runner, done_steps, seeds)
+            save_state(out, runner, done_steps, seeds)
             (out / PRETRAIN_STATE).unlink(missing_ok=True)
     elif trainer.pretrain is not None and len(rows) == 1 and (out / "pretrain.csv").exists():
         # resumed after the pretraining's checkpoint, before the first row: wall_s counts the pretraining
@@ -316,7 +328,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
     saved = {"steps": done_steps, "at": time.monotonic()}  # the checkpoint on disk
 
     def save():
-        write_checkpoint(out, runner, done_steps, seeds)
+        save_state(out, runner, done_steps, seeds)
         saved.update(steps=done_steps, at=time.monotonic())
 
     try:
