@@ -8,10 +8,10 @@
 # /tmp/NAME TRAIN FLAGS` (or resumes /tmp/NAME if it holds a checkpoint: a second call on the same
 # warm machine), stopping it cleanly (SIGTERM keeps rows and checkpoint) if it would leave less
 # than FIGURES_S seconds of the SECONDS this call has; then, with the time left, draws the run's
-# trajectories and novelty map there (the checkpoint is too large to bring back) and copies
-# config.json, metrics.csv, curve.png, export/ (every seed's policy and novelty model, in files
-# under 16 MiB), the figures' files and device_log.txt (commit, GPU, JAX version, precision, wall
-# times, the whole output) to $OUT. Training compiles at the run's own
+# trajectories and novelty map there (the checkpoint is too large to bring back) and puts
+# config.json, metrics.csv, device_log.txt (commit, GPU, JAX version, precision, wall times, the
+# whole output), figures.tar (curve, trajectories, novelty map) and, where it fits the device's
+# limits, export/ (every seed's policy and novelty model) in $OUT. Training compiles at the run's own
 # --precision (config.json; highest unless given); JAX_DEFAULT_MATMUL_PRECISION, highest unless
 # set, is what the figures' scripts run at.
 set -u
@@ -64,10 +64,20 @@ if [ "$rc" = 0 ] && [ "$(left)" -gt 60 ]; then
     wait
     say "figures done"
 fi
-for f in config.json metrics.csv curve.png trajectories.png trajectories.txt novelty_map.png novelty_map.txt; do
-    [ -s "$run/$f" ] && cp "$run/$f" "$OUT/"
-done
-# the policies and novelty models, in files under 16 MiB: evaluate and the figures' scripts read them here
-[ -d "$run/export" ] && cp -r "$run/export" "$OUT/"
+# What comes back is at most 8 files of 16 MiB, 64 MiB in all: config, metrics and the log as they
+# are, the figures in one tar (unpack it into the run folder), and the export's files (every
+# seed's policy and novelty model, at most 15 MiB each) where they fit beside those, else not
+cp "$run/config.json" "$run/metrics.csv" "$OUT/" 2>/dev/null
+figures=$(cd "$run" && ls curve.png trajectories.png trajectories.txt novelty_map.png novelty_map.txt 2>/dev/null)
+[ -n "$figures" ] && tar -C "$run" -cf "$OUT/figures.tar" $figures
+if [ -d "$run/export" ]; then
+    parts=$(ls "$run/export" | wc -l)
+    bytes=$(du -cb "$run"/export/* | tail -n 1 | cut -f1)
+    if [ "$parts" -le 4 ] && [ "$bytes" -le $((56 * 1024 * 1024)) ]; then
+        mkdir -p "$OUT/export" && cp "$run"/export/* "$OUT/export/"
+    else
+        say "export/ not brought back: $parts files, $bytes bytes"
+    fi
+fi
 say "done"
 tail -n 30 "$log"
