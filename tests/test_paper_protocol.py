@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simjax.task_names import TASKS_AS_OF
+from simjax.config_history import TASKS_AS_OF
 
 PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper"
 sys.path.insert(0, str(PAPER))

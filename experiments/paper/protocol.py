@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simjax.task_names import current_record
+from simjax.config_history import current_record
 
 WINDOW_STEPS = 100_000  # final success: the last rows covering at least this many agent steps
 WINDOW_EPISODES = 100  # steps to 0.9 and curves: the most recent rows holding at least this many episodes

@@ -145,12 +145,10 @@ def config_flags(config: dict, skip: tuple[str, ...] = ()) -> list[str]:
     that differs from today's default for its task and method (all of them if the defaults cannot
     be read); EC's settings only for EC."""
     defaults = _defaults(config)
-    try:  # what a config.json without a setting trained with
-        from simjax.runs.folder import TRAINED_BEFORE_THE_FLAG
+    from simjax.config_history import TRAINED_BEFORE_THE_FLAG
 
-        config = config | {k: v for k, v in TRAINED_BEFORE_THE_FLAG.items() if k not in config}
-    except Exception:
-        pass
+    # what a config.json without a setting trained with
+    config = config | {k: v for k, v in TRAINED_BEFORE_THE_FLAG.items() if k not in config}
     first = ("env", "algo", "total_steps", "num_seeds")
     out = []
     for name in list(first) + [k for k in config if k not in first]:
@@ -172,7 +170,7 @@ def input_commands(folder: Path) -> list[str]:
     """The command(s) that made a run or sweep folder, from its config.json (and fork.json)."""
     import json
 
-    from simjax.task_names import current_record
+    from simjax.config_history import current_record
 
     record = current_record(json.loads((folder / "config.json").read_text()))
     config = record["config"]

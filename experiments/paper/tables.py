@@ -6,7 +6,7 @@ with the paper's own numbers beside ours.
 
 Default inputs: ``experiments/results/table1/*/`` (e.g. ``table1/maze-spot10-east-sim``);
 each run is placed in the table by its config's ``env`` and ``algo`` (a folder written before the
-tasks took the ICM wads' starts by the start it trained with, ``simjax.task_names``), a cell
+tasks took the ICM wads' starts by the start it trained with, ``simjax.config_history``), a cell
 without one is listed as missing with the command that would make it. A run on
 ``maze-spot10-east`` (spot 10 facing exactly east: maze-very-sparse until 2026-12-04) stands in
 the paper's sparse column, marked as that start without the paper's 0-3.6 degree jitter. Writes

@@ -9,7 +9,7 @@ took its three settings from:
 - ``maze-very-sparse``: always spot 15, the small room at the bottom of the map, facing west, 176.4
   to 183.6 degrees;
 - ``maze-spot10-east`` and ``maze-spot16-east``: spot 10 or spot 16 facing exactly east, the
-  starts that ``maze-very-sparse`` and ``maze-sparse`` had before 2026-12-04 (``simjax.task_names``:
+  starts that ``maze-very-sparse`` and ``maze-sparse`` had before 2026-12-04 (``simjax.config_history``:
   run folders written before then are read under these names), kept so those runs rebuild;
   spot 10 facing east is the paper's sparse start without its jitter, spot 16 no start of the paper's;
 - ``maze-dense-invented-looks``, ``maze-sparse-invented-looks``, ... (any of the tasks above):

@@ -41,7 +41,7 @@ import threading
 from pathlib import Path
 
 from simjax.agents import TrainConfig, make_trainer
-from simjax.task_names import TASKS_AS_OF, current_record
+from simjax.config_history import TASKS_AS_OF, current_record
 
 METRIC_COLUMNS = (
     "env_steps", "seed", "success_ratio", "mean_episode_length", "mean_extrinsic_return",
@@ -92,7 +92,7 @@ def write_config(run_dir: Path, config: TrainConfig, versions: dict | None = Non
     """config.json: every setting (and, from a training process, the package versions); for a
     sweep, the swept values and the grid of points (``config`` holds the first point's values,
     with windows for the largest H and L); and the date of the task names it uses
-    (``simjax.task_names``)."""
+    (``simjax.config_history``)."""
     from simjax.runs.grid import grid_of
 
     record = {"config": dataclasses.asdict(config), "tasks_as_of": TASKS_AS_OF}
@@ -109,13 +109,8 @@ def _read_config(run_dir: Path) -> dict:
     return current_record(json.loads(path.read_text()))
 
 
-# a config.json without one of these settings was trained with this value (the code's fixed
-# value when the config was written), whatever today's default is
-TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest"}  # precision: JAX's default, on CPUs float32
-
-
 def load_config(run_dir: Path) -> TrainConfig:
-    return TrainConfig(**(TRAINED_BEFORE_THE_FLAG | _read_config(run_dir)["config"]))
+    return TrainConfig(**_read_config(run_dir)["config"])
 
 
 def load_sweep(run_dir: Path) -> dict[str, list]:
