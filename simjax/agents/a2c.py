@@ -30,6 +30,9 @@ eta * max_grad_norm and with Adam's epsilon scaled by eta too, which makes its s
 A2C's (Adam of (eta g, eta eps) is Adam of (g, eps)); the novelty model's at max_grad_norm.
 Scaling epsilon matters: the policy gradients of eta * loss_A2C are ~1e-6 per parameter, below
 Adam's usual 1e-5, which would otherwise shrink the policy's steps several-fold.
+
+That update is one rule (``a2c_rule``); ``make_trainer`` builds the rollout, the loss and the
+loop around it.
 """
 
 from __future__ import annotations
@@ -84,8 +87,8 @@ class Trainer(NamedTuple):
     novelty: Novelty
     pretrain: object = None  # EC's ``Pretrainer`` (before the first update; ``train`` runs it), or None
     # an update's parts, for timing them apart (experiments/bench.py): ``collect(runner) -> (env_state,
-    # carry, key, traj)``, ``loss(params, runner, traj, last_obs, last_reset) -> (loss, (info, novelty
-    # state))``, ``optimizer(hyper)`` the optax transformation
+    # carry, key, traj)``; A2C's ``loss(params, runner, traj, last_obs, last_reset) -> (loss, (info,
+    # novelty state))`` and ``optimizer(hyper)`` the optax transformation
     collect: Callable | None = None
     loss: Callable | None = None
     optimizer: Callable | None = None
@@ -172,12 +175,24 @@ def frozen(tx: optax.GradientTransformation) -> optax.GradientTransformation:
     return optax.GradientTransformation(tx.init, update)
 
 
-def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
-    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
-    env = make(config.env) if env is None else env
-    network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
-    if novelty is None:  # the model must read the env's observations: checked here, before compiling
-        novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
+class UpdateRule(NamedTuple):
+    """How an update turns a rollout into new parameters (``a2c_rule``: A2C's); ``make_trainer``
+    builds the rest around it.
+
+    ``init(params, hyper) -> opt_state``; ``step(runner, traj, last_obs, last_reset, key) ->
+    (params, opt_state, key, info, novelty_state)``: ``runner`` as the rollout ``traj`` started
+    from, ``last_obs``/``last_reset`` the frame after it, ``key`` the runner's key after the
+    rollout; ``info`` the loss terms, the novelty metrics and ``grad_norm``. ``loss`` and
+    ``optimizer`` are the rule's parts that ``Trainer`` exposes for timing them apart (or None)."""
+
+    init: Callable
+    step: Callable
+    loss: Callable | None = None
+    optimizer: Callable | None = None
+
+
+def a2c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> UpdateRule:
+    """Synchronous A2C's update: one Adam step on eq. (8) over the batch's mean losses."""
 
     def optimizer(hyper: Hyper):
         """Adam per parameter group, built from the runner's (traced) settings each update: its
@@ -192,6 +207,39 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
             {"policy": "policy", "novelty": "novelty"},
         )
 
+    def loss_fn(params, runner: RunnerState, traj: Transition, last_obs, last_reset):
+        novelty_loss, (bonus, novelty_info, novelty_state) = novelty.loss_and_bonus(
+            params["novelty"], runner.novelty, traj.obs, traj.reset, traj.action, last_obs, last_reset,
+            runner.hyper.novelty,
+        )
+        rl_loss, info = a2c_loss(params["policy"], network, runner.carry, traj, last_obs, last_reset, bonus, config,
+                                 runner.hyper)
+        return runner.hyper.policy_weight * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
+
+    def init(params, hyper: Hyper):
+        return optimizer(hyper).init(params)
+
+    def step(runner: RunnerState, traj: Transition, last_obs, last_reset, key):
+        grads, (info, novelty_state) = jax.grad(loss_fn, has_aux=True)(runner.params, runner, traj, last_obs, last_reset)
+        updates, opt_state = optimizer(runner.hyper).update(grads, runner.opt_state, runner.params)
+        params = optax.apply_updates(runner.params, updates)
+        if not novelty.trainable:  # kept as they are, not plus zero (which writes -0.0 as +0.0)
+            params = {**params, "novelty": runner.params["novelty"]}
+        # of the A2C loss, as plain A2C logs it
+        info = {**info, "grad_norm": optax.tree.norm(grads["policy"]) / runner.hyper.policy_weight}
+        return params, opt_state, key, info, novelty_state
+
+    return UpdateRule(init, step, loss_fn, optimizer)
+
+
+def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
+    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
+    env = make(config.env) if env is None else env
+    network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
+    if novelty is None:  # the model must read the env's observations: checked here, before compiling
+        novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
+    rule = a2c_rule(config, network, novelty)
+
     N, T = config.num_envs, config.rollout_len
 
     def init(key, hyper: Hyper | None = None) -> RunnerState:
@@ -202,7 +250,7 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         policy = network.init(k_net, carry, env_state.obs[None], starts_episode(env_state)[None])
         novelty_params, novelty_state = novelty.init(k_nov, env_state.obs)
         params = {"policy": policy, "novelty": novelty_params}
-        return RunnerState(params, optimizer(hyper).init(params), env_state, carry, novelty_state, k_run, hyper)
+        return RunnerState(params, rule.init(params, hyper), env_state, carry, novelty_state, k_run, hyper)
 
     def record(state, action, next_state) -> Transition:
         return Transition(
@@ -221,31 +269,15 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         env_state, carry, traj = rollout(env, act, runner.env_state, runner.carry, jax.random.split(sub, T), record)
         return env_state, carry, key, traj
 
-    def loss_fn(params, runner: RunnerState, traj: Transition, last_obs, last_reset):
-        novelty_loss, (bonus, novelty_info, novelty_state) = novelty.loss_and_bonus(
-            params["novelty"], runner.novelty, traj.obs, traj.reset, traj.action, last_obs, last_reset,
-            runner.hyper.novelty,
-        )
-        rl_loss, info = a2c_loss(params["policy"], network, runner.carry, traj, last_obs, last_reset, bonus, config,
-                                 runner.hyper)
-        return runner.hyper.policy_weight * rl_loss + novelty_loss, ({**info, **novelty_info}, novelty_state)
-
     def update(runner: RunnerState, _):
         env_state, carry, key, traj = collect(runner)
         chex.assert_shape(traj.obs, (T, N) + tuple(env.observation_size))
-        grads, (info, novelty_state) = jax.grad(loss_fn, has_aux=True)(
-            runner.params, runner, traj, env_state.obs, starts_episode(env_state)
-        )
-        updates, opt_state = optimizer(runner.hyper).update(grads, runner.opt_state, runner.params)
-        params = optax.apply_updates(runner.params, updates)
-        if not novelty.trainable:  # kept as they are, not plus zero (which writes -0.0 as +0.0)
-            params = {**params, "novelty": runner.params["novelty"]}
+        params, opt_state, key, info, novelty_state = rule.step(runner, traj, env_state.obs, starts_episode(env_state),
+                                                                 key)
         m = traj.metrics
         done = m["episode_done"]
         info = {
             **info,
-            # of the A2C loss, as plain A2C logs it
-            "grad_norm": optax.tree.norm(grads["policy"]) / runner.hyper.policy_weight,
             "episodes": jnp.sum(done),
             "successes": jnp.sum(done * m["episode_success"]),
             "length_sum": jnp.sum(done * m["episode_length"]),
@@ -267,7 +299,7 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
             runner = pretrain.pretrain_runner(runner)
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
-    return Trainer(init, run_chunk, train, network, novelty, pretrain, collect, loss_fn, optimizer)
+    return Trainer(init, run_chunk, train, network, novelty, pretrain, collect, rule.loss, rule.optimizer)
 
 
 def make_train(config: TrainConfig, env=None):

@@ -33,6 +33,7 @@ import jax.numpy as jnp
 from simjax.novelty.base import (
     Memory,
     RunningMeanStd,
+    Timeline,
     build_timeline,
     discounted_filter,
     init_memory,
@@ -47,7 +48,15 @@ class NoveltyState(NamedTuple):
     obs_stats: RunningMeanStd  # per pixel, (h, w, c)
     ret_stats: RunningMeanStd  # scalar, of the discounted error sums
     ret_running: jnp.ndarray  # (N,) discounted error sum per environment
-    model: Any = ()  # a stateful model's own per-environment state (EC's episodic memories)
+    model: Any = ()  # a stateful model's own per-environment state (EC's episodic memories), leading axis N
+
+
+class Prepared(NamedTuple):
+    """A rollout as every novelty model reads it (``Novelty.prepare``): no params involved."""
+
+    timeline: Timeline
+    memory: Memory  # the memory the next rollout starts from
+    obs_stats: RunningMeanStd  # with the rollout's frames folded in (if ``obs_norm``)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,14 +97,37 @@ class Novelty:
         if self.model is None:
             zero = jnp.zeros(())
             return zero, (jnp.zeros(actions.shape, jnp.float32), {k: zero for k in METRICS}, state)
-        tl, memory = build_timeline(state.memory, obs, reset, actions, last_obs, last_reset)
+        prepared = self.prepare(state, obs, reset, actions, last_obs, last_reset)
+        loss, (error, scored, metrics, model_state) = self.model_loss(params, state.model, prepared, hyper)
+        return loss, self.bonus_and_state(state, prepared, error, scored, metrics, model_state, hyper)
+
+    # ``loss_and_bonus`` in its three parts, for a learner that needs each environment's loss on
+    # its own (A3C's actors, ``simjax.agents.a3c``): only ``model_loss`` reads the params, and in
+    # it each environment's numbers come from its own column alone, so it can be ``vmap``ped over
+    # environments (one column each, the model's state split along its leading axis) with the
+    # normalisation the whole batch gives
+
+    def prepare(self, state: NoveltyState, obs, reset, actions, last_obs, last_reset) -> Prepared:
+        """The rollout's timeline, the memory the next rollout starts from, and the frame
+        statistics with the rollout's frames folded in (before any params are read)."""
+        timeline, memory = build_timeline(state.memory, obs, reset, actions, last_obs, last_reset)
         obs_stats = state.obs_stats.update(obs) if self.obs_norm else state.obs_stats
+        return Prepared(timeline, memory, obs_stats)
+
+    def model_loss(self, params, model_state, prepared: Prepared, hyper=None):
+        """``(loss, (error, scored, metrics, model_state))``: the model on ``prepared``'s
+        timeline, its frames normalised by ``prepared.obs_stats``; ``model_state`` is a stateful
+        model's own state (``NoveltyState.model``, leading axis: environment)."""
+        tl, x = prepared.timeline, self._frames(prepared.timeline, prepared.obs_stats)
         if getattr(self.model, "stateful", False):
-            error, scored, loss, metrics, model_state = self.model.apply_with_state(
-                params, state.model, tl, self._frames(tl, obs_stats), hyper)
+            error, scored, loss, metrics, model_state = self.model.apply_with_state(params, model_state, tl, x, hyper)
         else:
-            error, scored, loss, metrics = self.model.apply(params, tl, self._frames(tl, obs_stats), hyper)
-            model_state = state.model
+            error, scored, loss, metrics = self.model.apply(params, tl, x, hyper)
+        return loss, (error, scored, metrics, model_state)
+
+    def bonus_and_state(self, state: NoveltyState, prepared: Prepared, error, scored, metrics, model_state,
+                        hyper=None):
+        """``(bonus, metrics, state)`` from the model's ``error`` and ``scored`` (T, N)."""
         error = jax.lax.stop_gradient(error) * scored
         ret_stats, ret_running = state.ret_stats, state.ret_running
         if self.bonus_norm:
@@ -105,4 +137,4 @@ class Novelty:
             error = error / jnp.sqrt(ret_stats.var + 1e-8)
         bonus = (self.bonus_scale if hyper is None else hyper.bonus_scale) * error
         metrics = {**metrics, "bonus_mean": jnp.mean(bonus)}
-        return loss, (bonus, metrics, NoveltyState(memory, obs_stats, ret_stats, ret_running, model_state))
+        return bonus, metrics, NoveltyState(prepared.memory, prepared.obs_stats, ret_stats, ret_running, model_state)
