@@ -24,7 +24,8 @@ TASKS_AS_OF = "2026-12-04"
 # the name a task had in a config.json without "tasks_as_of" -> its name today
 RENAMED = {"maze-very-sparse": "maze-spot10-east", "maze-sparse": "maze-spot16-east"}
 # a config.json without one of these settings was trained with this value
-TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest"}  # precision: JAX's default, on CPUs float32
+TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest",  # precision: JAX's default, on CPUs float32
+                           "learner": "a2c", "reward_clip": False, "bootstrap_time_limit": True}
 
 
 def renamed(name: str) -> str:

@@ -40,7 +40,8 @@ def whole_number(text: str) -> int:
 
 whole_number.__name__ = "int"  # what argparse and list_of call the type in their messages
 
-_FIELD_TYPES = {"int": whole_number, "float": float, "str": str, "bool": parse_bool, "float | None": float}
+_FIELD_TYPES = {"int": whole_number, "float": float, "str": str, "bool": parse_bool, "float | None": float,
+                "bool | None": parse_bool}
 _FIELDS = tuple(f.name for f in dataclasses.fields(TrainConfig))
 
 

@@ -9,7 +9,10 @@ Per update, with values V from the network and ``done``/``trunc`` from the envir
     G_T   = V(o_T)
     G_t   = r_t + gamma * ((1 - done_t) G_{t+1} + trunc_t V(o_t))
     loss  = -mean(log pi(a_t|o_t) (G_t - V(o_t))) + c_v mean((G_t - V(o_t))^2) - c_H mean(H[pi])
-A termination (goal reached) stops the return there; a truncation (time limit) bootstraps.
+A termination (goal reached) stops the return there; a truncation (time limit) bootstraps
+(``bootstrap_time_limit``; without it, trunc_t is 0 above and the return stops there too, the
+ICM code's rule). With ``reward_clip`` each r_t is clipped to [-1, 1] first (the ICM code's, in
+its Doom runs).
 With ``bonus_episodic=False`` (RND's non-episodic intrinsic return, Burda et al. 2018) the
 network has a second value head V_b and the two rewards get returns of their own:
     G^e_t = task_scale * r^e_t + gamma * ((1 - done_t) G^e_{t+1} + trunc_t V_e(o_t))
@@ -32,7 +35,7 @@ Scaling epsilon matters: the policy gradients of eta * loss_A2C are ~1e-6 per pa
 Adam's usual 1e-5, which would otherwise shrink the policy's steps several-fold.
 
 That update is one rule (``a2c_rule``); ``make_trainer`` builds the rollout, the loss and the
-loop around it.
+loop around whichever rule ``config.learner`` names, A3C's being ``simjax.agents.a3c``'s.
 """
 
 from __future__ import annotations
@@ -88,7 +91,7 @@ class Trainer(NamedTuple):
     pretrain: object = None  # EC's ``Pretrainer`` (before the first update; ``train`` runs it), or None
     # an update's parts, for timing them apart (experiments/bench.py): ``collect(runner) -> (env_state,
     # carry, key, traj)``; A2C's ``loss(params, runner, traj, last_obs, last_reset) -> (loss, (info,
-    # novelty state))`` and ``optimizer(hyper)`` the optax transformation
+    # novelty state))`` and ``optimizer(hyper)`` the optax transformation (None under A3C's rule)
     collect: Callable | None = None
     loss: Callable | None = None
     optimizer: Callable | None = None
@@ -128,24 +131,27 @@ def n_step_returns(rewards, dones, truncations, values, gamma: float):
 def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bonus, config: TrainConfig,
              hyper: Hyper | None = None):
     """The A2C objective on one rollout, and its parts for logging; the numbers come from
-    ``hyper`` (default ``config.hyper()``), the structure (``bonus_episodic``) from ``config``."""
+    ``hyper`` (default ``config.hyper()``), the structure (``bonus_episodic``, ``reward_clip``,
+    ``bootstrap_time_limit``) from ``config``."""
     hyper = config.hyper() if hyper is None else hyper
     obs = jnp.concatenate([traj.obs, last_obs[None]], axis=0)
     reset = jnp.concatenate([traj.reset, last_reset[None]], axis=0)
     _, logits, values = network.apply(params, carry0, obs, reset)
     logits, value = logits[:-1], values[:-1]
+    truncation = traj.truncation if config.bootstrap_time_limit else jnp.zeros_like(traj.truncation)
+    clip = (lambda r: jnp.clip(r, -1.0, 1.0)) if config.reward_clip else (lambda r: r)
     if config.bonus_episodic:
-        rewards = total_reward(hyper.task_scale, traj.reward, bonus)
-        returns = n_step_returns(rewards, traj.done, traj.truncation, jax.lax.stop_gradient(values), hyper.gamma)
+        rewards = clip(total_reward(hyper.task_scale, traj.reward, bonus))
+        returns = n_step_returns(rewards, traj.done, truncation, jax.lax.stop_gradient(values), hyper.gamma)
         advantage = returns - jax.lax.stop_gradient(value)
     else:  # two streams: the task's return ends with the episode, the bonus's runs on into the next
         chex.assert_shape(values, (traj.done.shape[0] + 1, traj.done.shape[1], 2))
         never = jnp.zeros_like(traj.done)
         v = jax.lax.stop_gradient(values)
-        returns = jnp.stack([
-            n_step_returns(total_reward(hyper.task_scale, traj.reward, 0.0), traj.done, traj.truncation, v[..., 0],
+        returns = jnp.stack([  # each stream's reward clipped on its own: they have no sum to clip
+            n_step_returns(clip(total_reward(hyper.task_scale, traj.reward, 0.0)), traj.done, truncation, v[..., 0],
                            hyper.gamma),
-            n_step_returns(bonus, never, never, v[..., 1], hyper.gamma),
+            n_step_returns(clip(bonus), never, never, v[..., 1], hyper.gamma),
         ], axis=-1)
         advantage = jnp.sum(returns - v[:-1], axis=-1)  # the policy follows both: A = A_task + A_bonus
     log_probs = jax.nn.log_softmax(logits)
@@ -176,8 +182,8 @@ def frozen(tx: optax.GradientTransformation) -> optax.GradientTransformation:
 
 
 class UpdateRule(NamedTuple):
-    """How an update turns a rollout into new parameters (``a2c_rule``: A2C's); ``make_trainer``
-    builds the rest around it.
+    """How an update turns a rollout into new parameters: A2C's (``a2c_rule``) or A3C's
+    (``simjax.agents.a3c.a3c_rule``); ``make_trainer`` builds the rest around it.
 
     ``init(params, hyper) -> opt_state``; ``step(runner, traj, last_obs, last_reset, key) ->
     (params, opt_state, key, info, novelty_state)``: ``runner`` as the rollout ``traj`` started
@@ -233,12 +239,18 @@ def a2c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> Upd
 
 
 def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
-    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names."""
+    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names. The
+    rollout, the loss and the loop are this module's; the update rule is ``config.learner``'s."""
     env = make(config.env) if env is None else env
     network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
     if novelty is None:  # the model must read the env's observations: checked here, before compiling
         novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
-    rule = a2c_rule(config, network, novelty)
+    if config.learner == "a3c":
+        from simjax.agents.a3c import a3c_rule  # here, not at the top: a3c builds on this module
+
+        rule = a3c_rule(config, network, novelty)
+    else:
+        rule = a2c_rule(config, network, novelty)
 
     N, T = config.num_envs, config.rollout_len
 

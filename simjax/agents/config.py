@@ -7,6 +7,12 @@ become ``num_envs`` = 16 synchronous environments. One default differs: the lear
 step it makes 16x the updates of a synchronous batch of 16; at 1e-4 (and 3e-4) synchronous
 A2C did not move off the random policy's success on maze-dense in 1M steps, at 1e-3 it did
 (docs/results.md has the runs).
+
+``learner="a3c"`` (``simjax.agents.a3c``) is A3C's update rule as the ICM code runs it (one
+Adam step per actor, in sequence), and its defaults are that code's: learning rate 1e-4,
+gradient clip 40, value weight 0.25 on the mean squared error (its 0.5 times half the squared
+error), rewards clipped to [-1, 1] where the task's rewards lie there anyway, no bootstrap at
+the time limit (``LEARNER_DEFAULTS``).
 """
 
 from __future__ import annotations
@@ -17,10 +23,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from simjax.envs import check_name, episodes_end_early
+from simjax.envs import check_name, episodes_end_early, is_mywayhome
 from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, PretrainPlan, flag
 
 ALGOS = ("a2c",) + MODELS
+LEARNERS = ("a2c", "a3c")
+# the settings whose default depends on the learner: A2C's are simjax's own (docs/paper-differences.md),
+# A3C's the ICM code's (pathak22/noreward-rl, src/constants.py and src/a3c.py; simjax.agents.a3c)
+LEARNER_DEFAULTS = {
+    "a2c": {"learning_rate": 1e-3, "value_coef": 0.5, "max_grad_norm": 0.5, "bootstrap_time_limit": True},
+    "a3c": {"learning_rate": 1e-4, "value_coef": 0.25, "max_grad_norm": 40.0, "bootstrap_time_limit": False},
+}
 # paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method (EC's is its alpha)
 PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01, "ec": 0.01}
 # the settings that change no array shape once windows are laid out for their largest values:
@@ -43,6 +56,13 @@ class Hyper(NamedTuple):
     novelty: NoveltyHyper
 
 
+def rewards_within_one(env: str) -> bool:
+    """Whether every reward of task ``env`` lies in [-1, 1] (MyWayHome's and maze-tiny's goal,
+    +1), so that clipping the reward to it changes only the bonus; melon's +20 and explore-goals'
+    +10 do not, and a gymnax environment's rewards are not known here."""
+    return env == "maze-tiny" or is_mywayhome(env)
+
+
 def _f(default, help):
     return dataclasses.field(default=default, metadata={"help": help})
 
@@ -54,12 +74,24 @@ class TrainConfig:
     total_steps: int = _f(2_000_000, "agent steps per seed (each is 4 simulator tics)")
     num_envs: int = _f(16, "synchronous environments per seed (N)")
     rollout_len: int = _f(20, "steps per environment per update (T), n-step return horizon")
-    learning_rate: float = _f(1e-3, "Adam learning rate (paper: 1e-4 for 16 async A3C actors)")
+    learner: str = _f("a2c", "update rule: a2c (one Adam step on the N envs' mean loss) | a3c (each env an "
+                      "actor with its own Adam, its summed T-step loss's gradient applied one actor after "
+                      "another: A3C's rule as the ICM code runs it)")
+    learning_rate: float | None = _f(None, "Adam learning rate (default: 1e-3 with --learner a2c; the paper's "
+                                     "1e-4 with a3c)")
     gamma: float = _f(0.99, "discount")
-    value_coef: float = _f(0.5, "weight of the value loss (mean squared n-step error)")
+    value_coef: float | None = _f(None, "weight of the value loss, the mean squared n-step error (default: 0.5 "
+                                  "with --learner a2c; 0.25 with a3c, the ICM code's 0.5 x half the squared error)")
     entropy_coef: float = _f(0.01, "weight of the policy entropy bonus")
-    max_grad_norm: float = _f(0.5, "global gradient-norm clip")
+    max_grad_norm: float | None = _f(None, "global gradient-norm clip, per parameter group (policy, novelty "
+                                     "model) (default: 0.5 with --learner a2c; 40, per actor, with a3c)")
     task_scale: float = _f(1.0, "scale of the extrinsic reward: r = task_scale * r_e + bonus")
+    reward_clip: bool | None = _f(None, "clip each step's reward r (task plus bonus) to [-1, 1], as the ICM code "
+                                  "does in its Doom runs (default: on with --learner a3c where the task's "
+                                  "rewards lie in [-1, 1], the maze-* tasks; off otherwise)")
+    bootstrap_time_limit: bool | None = _f(None, "an episode cut by its time limit bootstraps its return from "
+                                           "the value of its last frame (default: true with --learner a2c; "
+                                           "false with a3c, the ICM code's rule: the return ends there)")
     seed: int = _f(0, "first seed; seeds are seed, seed+1, ...")
     num_seeds: int = _f(1, "seeds trained together as one jax.vmap")
     log_every: int = _f(25_000, "agent steps per seed between metric rows (rounded to updates)")
@@ -109,6 +141,13 @@ class TrainConfig:
         check_name(self.env)
         if self.algo not in ALGOS:
             raise ValueError(f"unknown algo {self.algo!r}; known algos: {', '.join(ALGOS)}")
+        if self.learner not in LEARNERS:
+            raise ValueError(f"unknown --learner {self.learner!r}; known learners: {', '.join(LEARNERS)}")
+        for name, default in LEARNER_DEFAULTS[self.learner].items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, default)
+        if self.reward_clip is None:
+            object.__setattr__(self, "reward_clip", self.learner == "a3c" and rewards_within_one(self.env))
         if self.bonus_scale is None:
             object.__setattr__(self, "bonus_scale", PAPER_BONUS_SCALE[self.algo])
         if self.ec_beta is None:
