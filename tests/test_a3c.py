@@ -138,31 +138,34 @@ def test_each_actor_takes_an_adam_step_of_its_own_on_its_summed_loss(num_envs):
     two steps in the drawn order, each with its actor's own (fresh) Adam state and its gradient
     taken at the parameters the update started from. The Adam moments after the update are
     (1 - beta) times the clipped gradients, so they show the loss's weights and the clips even
-    where Adam's first step (about lr * sign(g)) does not."""
+    where Adam's first step (about lr * sign(g)) does not. Twice, from one compiled program: with
+    a clip no gradient reaches (every weight shows), and with one between the two groups'
+    gradient norms (one group is clipped, the other is not, so a clip over both together, or
+    none, gives other gradients)."""
     case = _Case(num_envs)
     config, grads = case.config, case.grads
-    # a clip between the two groups' gradient norms: one group is clipped, the other is not, so a
-    # clip over both together, or none, gives other gradients
     norms = sorted([_norm(grads["policy"][0]), _norm(grads["novelty"][0])])
     assert norms[1] > 2 * norms[0], norms
-    clip = float(np.sqrt(norms[0] * norms[1]))
-    hyper = case.hyper._replace(max_grad_norm=np.float32(clip))
-    runner = jax.jit(case.trainer.init)(jax.random.PRNGKey(0), hyper)
-    after, _ = jax.jit(case.trainer.run_chunk)(runner)
-    want_params, want_states = jax.jit(hand_update, static_argnums=2)(runner.params, grads, tuple(case.order), clip,
-                                                                     config.learning_rate)
+    largest = max(_norm(g) for group in grads.values() for g in group)
+    init, chunk = jax.jit(case.trainer.init), jax.jit(case.trainer.run_chunk)
+    hand = jax.jit(hand_update, static_argnums=2)
     assert config.learning_rate == 1e-4
-    for group in ("policy", "novelty"):
-        for i in range(num_envs):
-            mine = jax.tree.map(lambda x, i=i: x[i], after.opt_state[group])
-            _close(mine, want_states[group][i], f"{group} actor {i}")
-            counts = [leaf for leaf in jax.tree.leaves(after.opt_state[group]) if leaf.dtype == jnp.int32]
-            assert all(int(c[i]) == 1 for c in counts)  # each actor's own Adam took one step
-    moved = jax.tree.map(lambda a, b: a - b, after.params, runner.params)
-    want_moved = jax.tree.map(lambda a, b: a - b, want_params, runner.params)
-    _close(moved, want_moved, "step", rel=1e-2)  # looser: where |g| is near Adam's epsilon its step follows g's rounding
-    assert _norm(moved["policy"]) > 0 and _norm(moved["novelty"]["predictor"]) > 0
-    chex.assert_trees_all_equal(after.params["novelty"]["target"], runner.params["novelty"]["target"])
+    for clip in (2 * largest, float(np.sqrt(norms[0] * norms[1]))):
+        runner = init(jax.random.PRNGKey(0), case.hyper._replace(max_grad_norm=np.float32(clip)))
+        after, _ = chunk(runner)
+        want_params, want_states = hand(runner.params, grads, tuple(case.order), clip, config.learning_rate)
+        for group in ("policy", "novelty"):
+            for i in range(num_envs):
+                mine = jax.tree.map(lambda x, i=i: x[i], after.opt_state[group])
+                _close(mine, want_states[group][i], f"clip {clip:.3g}: {group} actor {i}")
+                counts = [leaf for leaf in jax.tree.leaves(after.opt_state[group]) if leaf.dtype == jnp.int32]
+                assert all(int(c[i]) == 1 for c in counts)  # each actor's own Adam took one step
+        moved = jax.tree.map(lambda a, b: a - b, after.params, runner.params)
+        want_moved = jax.tree.map(lambda a, b: a - b, want_params, runner.params)
+        # looser: where |g| is near Adam's epsilon its step follows g's rounding
+        _close(moved, want_moved, f"clip {clip:.3g}: step", rel=1e-2)
+        assert _norm(moved["policy"]) > 0 and _norm(moved["novelty"]["predictor"]) > 0
+        chex.assert_trees_all_equal(after.params["novelty"]["target"], runner.params["novelty"]["target"])
 
 
 @pytest.mark.xdist_group("a3c_rnd")
