@@ -280,7 +280,7 @@ def test_the_learner_flags(capsys):
     assert (config.reward_clip, config.bootstrap_time_limit, config.max_grad_norm) == (False, True, 20.0)
     with pytest.raises(SystemExit):
         cli.parse_config(["--learner", "a3"])
-    assert "unknown --learner 'a3'" in capsys.readouterr().err
+    assert "--learner: invalid choice: 'a3'" in capsys.readouterr().err
     with pytest.raises(ValueError, match="--learner cannot be swept"):
         check_sweep({}, {"learner": ["a2c", "a3c"]})
 

@@ -74,9 +74,11 @@ class TrainConfig:
     total_steps: int = _f(2_000_000, "agent steps per seed (each is 4 simulator tics)")
     num_envs: int = _f(16, "synchronous environments per seed (N)")
     rollout_len: int = _f(20, "steps per environment per update (T), n-step return horizon")
-    learner: str = _f("a2c", "update rule: a2c (one Adam step on the N envs' mean loss) | a3c (each env an "
-                      "actor with its own Adam, its summed T-step loss's gradient applied one actor after "
-                      "another: A3C's rule as the ICM code runs it)")
+    learner: str = dataclasses.field(default="a2c", metadata={
+        "choices": LEARNERS,
+        "help": "update rule: a2c (one Adam step on the N envs' mean loss) | a3c (each env an actor with its own "
+                "Adam, its summed T-step loss's gradient applied one actor after another: A3C's rule as the ICM "
+                "code runs it)"})
     learning_rate: float | None = _f(None, "Adam learning rate (default: 1e-3 with --learner a2c; the paper's "
                                      "1e-4 with a3c)")
     gamma: float = _f(0.99, "discount")
