@@ -130,12 +130,14 @@ def flag_text(value) -> str:
 
 
 def _defaults(config: dict) -> dict | None:
-    """TrainConfig's defaults for ``config``'s task and method (some depend on them: beta on the
-    method, EC's bonus offset on the task); imported only here: it imports JAX, compiles nothing."""
+    """TrainConfig's defaults for ``config``'s task, method and learner (some depend on them: beta
+    on the method, EC's bonus offset on the task, the learning rate, clip and return rules on the
+    learner); imported only here: it imports JAX, compiles nothing."""
     try:
         from simjax.agents.config import TrainConfig
 
-        return dataclasses.asdict(TrainConfig(env=config.get("env", "maze-very-sparse"), algo=config.get("algo", "a2c")))
+        return dataclasses.asdict(TrainConfig(env=config.get("env", "maze-very-sparse"), algo=config.get("algo", "a2c"),
+                                              learner=config.get("learner", "a2c")))
     except Exception:  # the learner mid-edit, or a task unknown here: every field is then spelled out
         return None
 

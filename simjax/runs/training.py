@@ -304,7 +304,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
         what = f"resuming at {done_steps:,} steps" if done_steps else "compiling"
         points = f"{len(grid)} sweep points x " if sweep else ""
         on = f", on {len(sharding.mesh.devices)} devices" if sharding is not None else ""
-        print(f"{what}: {config.algo} on {config.env} ({points}{config.num_seeds} seed(s), "
+        print(f"{what}: {config.algo} ({config.learner} learner) on {config.env} ({points}{config.num_seeds} seed(s), "
               f"{config.num_envs} envs each{on}); run folder {out}", file=sys.stderr, flush=True)
     save_state(out, runner, done_steps, seeds)
     pretrain_s = 0.0
