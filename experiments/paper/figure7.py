@@ -21,7 +21,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from report import Panel, Variant, figure_main  # noqa: E402
 
-DEFAULT_INPUTS = ["experiments/results/figure7/*/", "experiments/results/table1/maze-spot10-east-sim/",
+DEFAULT_INPUTS = ["experiments/results/figure7/*/", "experiments/results/table1/maze-very-sparse-sim/",
+                  "experiments/results/table1/maze-very-sparse-icm/", "experiments/results/table1/maze-spot10-east-sim/",
                   "experiments/results/table1/maze-spot10-east-icm/"]
 SIM = {"env": "maze-very-sparse", "algo": "sim", "obs_len": 10, "act_len": 3, "sim_inverse": True, "sim_combine": "full",
        "sim_sequence": "lstm", "sim_target": "rnd"}

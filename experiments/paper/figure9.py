@@ -22,7 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from report import Panel, Variant, figure_main  # noqa: E402
 
 DEFAULT_INPUTS = ["experiments/results/figure9/*/", "experiments/results/figure9-*/",
-                  "experiments/results/table1/maze-dense-sim/", "experiments/results/table1/maze-spot10-east-sim/"]
+                  "experiments/results/table1/maze-dense-sim/", "experiments/results/table1/maze-very-sparse-sim/",
+                  "experiments/results/table1/maze-spot10-east-sim/"]
 BETAS = (0.01, 0.001, 0.0001)
 SIM = {"algo": "sim", "obs_len": 10, "act_len": 3, "sim_inverse": True, "sim_combine": "full", "sim_sequence": "lstm",
        "sim_target": "rnd"}
