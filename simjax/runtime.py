@@ -8,6 +8,7 @@ supervisor came from batched LAPACK QRs in the seed-vmapped ``init`` and is gone
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -22,18 +23,29 @@ def enable_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
-# --precision -> JAX's jax_default_matmul_precision. JAX's own "bfloat16" is an alias of
-# "default" (TF32 on NVIDIA GPUs), so bfloat16 is the dot algorithm that says so.
-MATMUL_PRECISIONS = {"highest": "highest", "high": "high", "default": "default", "bfloat16": "BF16_BF16_F32"}
+# --precision -> JAX's jax_default_matmul_precision for every float32 product, and the operand
+# dtype of the networks' products (simjax.networks.layers.matmul_operands). bfloat16 is
+# bfloat16 operands summed in float32 in the networks (the CPU's AMX units and a GPU's tensor
+# cores take them as they are; JAX's dot-algorithm setting does not reach AMX) and float32
+# products everywhere else (the renderer's geometry), under a JAX setting of its own that keeps
+# jit's cache apart (layers.BFLOAT16_JAX_PRECISION).
+MATMUL_PRECISIONS = {"highest": "highest", "high": "high", "default": "default", "bfloat16": "F32_F32_F32"}  # = BFLOAT16_JAX_PRECISION
 
 
 def matmul_precision(name: str):
     """A context in which JAX traces every float32 matmul and convolution at ``--precision``
-    ``name`` (``MATMUL_PRECISIONS``): a thread-local setting, so it wins over
-    JAX_DEFAULT_MATMUL_PRECISION and ``jax.config``'s global value, and leaves both as they
-    were when it ends. Programs compiled inside it keep the precision they were traced with."""
+    ``name`` (``MATMUL_PRECISIONS``) and the networks' products with bfloat16 operands where
+    ``name`` is bfloat16: thread-local settings, so they win over JAX_DEFAULT_MATMUL_PRECISION
+    and ``jax.config``'s global value, and leave both as they were when it ends. Programs
+    compiled inside it keep the precision they were traced with."""
     import jax
+    import jax.numpy as jnp
+
+    from simjax.networks.layers import matmul_operands
 
     if name not in MATMUL_PRECISIONS:
         raise ValueError(f"--precision must be one of {', '.join(MATMUL_PRECISIONS)}, got {name!r}")
-    return jax.default_matmul_precision(MATMUL_PRECISIONS[name])
+    stack = contextlib.ExitStack()
+    stack.enter_context(matmul_operands(jnp.bfloat16 if name == "bfloat16" else jnp.float32))
+    stack.enter_context(jax.default_matmul_precision(MATMUL_PRECISIONS[name]))
+    return stack

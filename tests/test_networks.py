@@ -169,3 +169,29 @@ def test_on_a_cpu_highest_high_and_default_precision_compute_what_jax_default_do
     for name in ("highest", "high", "default"):
         with runtime.matmul_precision(name):
             chex.assert_trees_all_equal(grad(params), base)
+
+
+def test_reset_lstm_is_flax_optimized_lstm_cell_with_its_parameters():
+    """``ResetLSTM`` takes the input projection out of the scan; its parameters are flax's
+    ``OptimizedLSTMCell``'s (names, shapes, initial values) and its outputs that cell's, step
+    by step, with the carry zeroed at resets."""
+    from simjax.networks.actor_critic import ResetLSTM
+
+    T, N, D, H = 4, 3, 5, 8
+    x = jax.random.normal(jax.random.PRNGKey(0), (T, N, D))
+    reset = jnp.array([[1, 0, 0], [0, 1, 0], [0, 0, 0], [1, 0, 1]], bool)
+    carry = ResetLSTM.initial_carry(N, H)
+    lstm = ResetLSTM(H)
+    params = lstm.init(jax.random.PRNGKey(1), carry, (x, reset))
+    cell = nn.OptimizedLSTMCell(H, recurrent_kernel_init=orthogonal())
+    flax_params = cell.init(jax.random.PRNGKey(1), carry, x[0])
+    chex.assert_trees_all_equal_shapes_and_dtypes(params["params"]["OptimizedLSTMCell_0"], flax_params["params"])
+    cell_params = {"params": params["params"]["OptimizedLSTMCell_0"]}
+    (c, h), out = jax.jit(lstm.apply)(params, carry, (x, reset))
+    want_c, want_h = carry
+    for t in range(T):
+        want_c, want_h = (jnp.where(reset[t][:, None], 0.0, v) for v in (want_c, want_h))
+        (want_c, want_h), y = cell.apply(cell_params, (want_c, want_h), x[t])
+        np.testing.assert_allclose(out[t], y, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(c, want_c, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(h, want_h, rtol=1e-5, atol=1e-6)

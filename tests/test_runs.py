@@ -14,6 +14,7 @@ import time
 
 import chex
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from helpers import RND_TINY, flags
@@ -22,6 +23,7 @@ from simjax import runs, runtime
 from simjax import sweep as sweep_cli
 from simjax import train as cli
 from simjax.agents import TrainConfig
+from simjax.networks.layers import operand_dtype
 from simjax.runs import training
 
 
@@ -300,19 +302,20 @@ def test_a_run_is_traced_at_its_recorded_precision_whatever_jax_global_setting(t
         pass
 
     def first_inputs(*args):  # the fresh run's init is traced with these, right after
-        seen.append(jax.config.jax_default_matmul_precision)
+        seen.append((jax.config.jax_default_matmul_precision, operand_dtype()))
         raise Traced
 
     monkeypatch.setattr(training, "batch_inputs", first_inputs)
     out = tmp_path / "run"
     previous = jax.config.jax_default_matmul_precision
-    jax.config.update("jax_default_matmul_precision", "float32")  # what JAX_DEFAULT_MATMUL_PRECISION=float32 sets
+    jax.config.update("jax_default_matmul_precision", "bfloat16")  # what JAX_DEFAULT_MATMUL_PRECISION=bfloat16 sets
     try:
         with pytest.raises(Traced):
             cli.main(["--env", "maze-tiny", "--precision", "bfloat16", "--out", str(out), "--quiet"])
         with pytest.raises(Traced):  # the folder has no checkpoint yet: resumed, it starts again, at config.json's precision
             cli.main(["--resume", str(out), "--quiet"])
-        assert jax.config.jax_default_matmul_precision == "float32"
+        assert jax.config.jax_default_matmul_precision == "bfloat16" and operand_dtype() == jnp.float32
     finally:
         jax.config.update("jax_default_matmul_precision", previous)
-    assert seen == [runtime.MATMUL_PRECISIONS["bfloat16"]] * 2 == ["BF16_BF16_F32"] * 2
+    # resumed as it was configured: bfloat16 operands in the networks, float32 products elsewhere
+    assert seen == [(runtime.MATMUL_PRECISIONS["bfloat16"], jnp.bfloat16)] * 2 == [("F32_F32_F32", jnp.bfloat16)] * 2

@@ -127,14 +127,19 @@ class TrainConfig:
                               "(the paper's A2C, one value head); false: it runs on across episode "
                               "ends with its own value head (RND's non-episodic intrinsic return), so "
                               "reaching the goal does not forfeit the bonus still to come")
-    # how the command compiles the run, not what it learns: every float32 matmul and convolution
-    # of the program (simjax.runtime.MATMUL_PRECISIONS). On a CPU highest, high and default give
-    # the numbers JAX's default gives, to the bit; highest stays the default until a GPU check
+    # how the command compiles the run: every float32 matmul and convolution of the program
+    # (simjax.runtime.MATMUL_PRECISIONS). On a CPU highest, high and default give the numbers
+    # JAX's default gives, to the bit; bfloat16 rounds the networks' operands (not the
+    # renderer's), so it can change what a run learns: highest stays the default until a
+    # learning check of bfloat16 against float32 on the same seeds says otherwise
     precision: str = dataclasses.field(default="highest", metadata={
         "choices": ("highest", "high", "default", "bfloat16"),
-        "help": "float32 matmul and convolution precision: highest (float32), high and default (TF32 on NVIDIA "
-                "GPUs that have it, A100 on), bfloat16 (bfloat16 inputs, float32 sums); on a CPU the first three "
-                "give the same numbers; recorded in config.json, it wins over JAX_DEFAULT_MATMUL_PRECISION"})
+        "help": "matmul precision: highest (float32), high and default (TF32 on NVIDIA GPUs that have it, A100 "
+                "on; on a CPU the same numbers as highest), bfloat16 (every product of the policy's and the "
+                "novelty model's networks, convolutions included, takes bfloat16 operands and sums in float32: "
+                "the CPU's AMX units and a GPU's tensor cores; params, Adam, the LSTM state, the policy and value "
+                "heads, losses and the renderer stay float32); recorded in config.json, it wins over "
+                "JAX_DEFAULT_MATMUL_PRECISION"})
 
     def __post_init__(self):
         """Checks the values alone, cheaply (a config is made whenever one is loaded or

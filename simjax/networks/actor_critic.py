@@ -10,14 +10,13 @@ step of an episode. Acting is the same call with T = 1, so acting and learning s
 
 from __future__ import annotations
 
-import functools
-
 import chex
 import flax.linen as nn
 import jax
 import jax.numpy as jnp
+from flax.linen.recurrent import DenseParams
 
-from simjax.networks.layers import conv_stack, orthogonal
+from simjax.networks.layers import Dense, conv_stack, matmul, orthogonal
 
 
 class Encoder(nn.Module):
@@ -37,23 +36,49 @@ class Encoder(nn.Module):
         if self.image:
             x = conv_stack(x, (16, 32))
             x = x.reshape(x.shape[:-3] + (-1,))
-        return nn.relu(nn.Dense(self.features)(x))
+        return nn.relu(Dense(self.features)(x))
+
+
+class OptimizedLSTMCell(nn.Module):
+    """The parameters of flax's ``nn.OptimizedLSTMCell`` under its names (ii, if, ig, io: input
+    kernels; hi, hf, hg, ho: recurrent kernels and the biases), with its initialisers, so
+    checkpoints written with flax's cell load; returned concatenated in gate order i, f, g, o."""
+
+    features: int
+
+    @nn.compact
+    def __call__(self, x: jnp.ndarray):
+        gates = "ifgo"
+        w_i = [DenseParams(self.features, use_bias=False, name=f"i{g}")(x)[0] for g in gates]
+        h = jnp.zeros(x.shape[:-1] + (self.features,), x.dtype)
+        recurrent = [DenseParams(self.features, kernel_init=orthogonal(), name=f"h{g}")(h) for g in gates]
+        return (jnp.concatenate(w_i, axis=-1), jnp.concatenate([k for k, _ in recurrent], axis=-1),
+                jnp.concatenate([b for _, b in recurrent], axis=-1))
 
 
 class ResetLSTM(nn.Module):
-    """An LSTM scanned over time (axis 0) whose carry is zeroed where ``reset`` is true."""
+    """An LSTM over time (axis 0) whose carry is zeroed where ``reset`` is true: flax's
+    ``OptimizedLSTMCell`` (same gates, parameters and initialisers; tested) with the input
+    projection x W_i taken once for all T*N inputs, one large product, and only h W_h + b in the
+    scan over time."""
 
     features: int = 256
 
-    @functools.partial(
-        nn.scan, variable_broadcast="params", split_rngs={"params": False}, in_axes=0, out_axes=0
-    )
     @nn.compact
     def __call__(self, carry, inputs):
         x, reset = inputs
-        carry = jax.tree.map(lambda c: jnp.where(reset[:, None], jnp.zeros_like(c), c), carry)
-        carry, h = nn.OptimizedLSTMCell(self.features, recurrent_kernel_init=orthogonal())(carry, x)
-        return carry, h
+        w_i, w_h, bias = OptimizedLSTMCell(self.features)(x)
+        projected = matmul(x, w_i)  # (T, N, 4 features)
+
+        def step(carry, xs):
+            p, fresh = xs
+            c, h = jax.tree.map(lambda v: jnp.where(fresh[:, None], jnp.zeros_like(v), v), carry)
+            i, f, g, o = jnp.split(p + matmul(h, w_h) + bias, 4, axis=-1)
+            c = nn.sigmoid(f) * c + nn.sigmoid(i) * jnp.tanh(g)
+            h = nn.sigmoid(o) * jnp.tanh(c)
+            return (c, h), h
+
+        return jax.lax.scan(step, carry, (projected, reset))
 
     @staticmethod
     def initial_carry(batch: int, features: int = 256):

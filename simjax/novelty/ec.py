@@ -89,7 +89,7 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from simjax.networks.layers import PatchConv, max_pool
+from simjax.networks.layers import Dense, PatchConv, max_pool
 from simjax.novelty.base import Timeline, masked_mean, to_unit
 
 # the original code's values (see the table above)
@@ -144,7 +144,7 @@ class ResNet18(nn.Module):
                 stride = 2 if (stage > 0 and block == 0) else 1
                 x = BasicBlock(self.width * 2**stage, stride, first=(stage == 0 and block == 0))(x)
         x = jnp.mean(nn.relu(x), axis=(-3, -2))
-        return nn.Dense(self.features, kernel_init=nn.initializers.he_normal())(x)
+        return Dense(self.features, kernel_init=nn.initializers.he_normal())(x)
 
 
 class ReachabilityNet(nn.Module):
@@ -157,9 +157,9 @@ class ReachabilityNet(nn.Module):
 
     def setup(self):
         self.embedding = ResNet18(self.width, self.features)
-        self.first = nn.Dense(self.hidden, name="first")
-        self.second = nn.Dense(self.hidden, use_bias=False, name="second")
-        self.out = nn.Dense(2, name="out")
+        self.first = Dense(self.hidden, name="first")
+        self.second = Dense(self.hidden, use_bias=False, name="second")
+        self.out = Dense(2, name="out")
 
     def embed(self, frames):
         """(..., h, w, c) frames in [0, 1] -> (..., features)."""

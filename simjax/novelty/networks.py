@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.networks.layers import conv_stack, orthogonal
+from simjax.networks.layers import Dense, conv_stack, matmul, orthogonal
 
 SQRT2 = float(np.sqrt(np.float32(2.0)))  # float32's sqrt(2), in numpy: no computation on import
 
@@ -31,7 +31,7 @@ class RNDTarget(nn.Module):
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
         init = orthogonal(SQRT2)
         x = conv_stack(x, (32, 32, 32), (8, 4, 3), (4, 2, 1), "VALID", nn.leaky_relu, init)
-        return nn.Dense(self.features, kernel_init=init)(_flatten(x))
+        return Dense(self.features, kernel_init=init)(_flatten(x))
 
 
 class RNDPredictor(nn.Module):
@@ -41,7 +41,7 @@ class RNDPredictor(nn.Module):
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        return nn.Dense(self.features)(_flatten(conv_stack(x, (32, 32, 32, 32))))
+        return Dense(self.features)(_flatten(conv_stack(x, (32, 32, 32, 32))))
 
 
 class FrameEmbedding(nn.Module):
@@ -51,7 +51,7 @@ class FrameEmbedding(nn.Module):
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
-        return nn.relu(nn.Dense(self.features)(_flatten(conv_stack(x, (16, 32)))))
+        return nn.relu(Dense(self.features)(_flatten(conv_stack(x, (16, 32)))))
 
 
 class WindowLSTM(nn.Module):
@@ -66,7 +66,7 @@ class WindowLSTM(nn.Module):
     hidden: int = 256
 
     def setup(self):
-        self.input = nn.Dense(4 * self.hidden, use_bias=False, name="input")
+        self.input = Dense(4 * self.hidden, use_bias=False, name="input")
 
         def gate_blocks(key, shape, dtype=jnp.float32):
             init = orthogonal()
@@ -85,7 +85,7 @@ class WindowLSTM(nn.Module):
         def step(carry, xs):
             p, fresh = xs
             c, h = jax.tree.map(lambda v: jnp.where(fresh, jnp.zeros_like(v), v), carry)
-            i, f, g, o = jnp.split(p + h @ self.recurrent + self.bias, 4, axis=-1)
+            i, f, g, o = jnp.split(p + matmul(h, self.recurrent) + self.bias, 4, axis=-1)
             c = nn.sigmoid(f) * c + nn.sigmoid(i) * jnp.tanh(g)
             return (c, nn.sigmoid(o) * jnp.tanh(c)), None
 
@@ -132,7 +132,7 @@ class SIMNet(nn.Module):
         chex.assert_shape([windows.action_mask], (T, L, n))
         emb = FrameEmbedding(self.hidden)(x)  # every frame embedded once
         # one action embedding per action value: a table (A, 128), looked up per timeline step
-        table = nn.relu(nn.Dense(128, name="ActionEmbedding")(jnp.eye(A, dtype=jnp.float32)))
+        table = nn.relu(Dense(128, name="ActionEmbedding")(jnp.eye(A, dtype=jnp.float32)))
         if self.sequence == "lstm":
             frame_lstm, action_lstm = WindowLSTM(self.hidden, name="FrameLSTM"), WindowLSTM(self.hidden, name="ActionLSTM")
             h_o = self._last(frame_lstm, frame_lstm.project(emb), windows.frame_index, windows.frame_mask,
@@ -142,8 +142,8 @@ class SIMNet(nn.Module):
         elif self.sequence == "ff":
             frames = gather_windows(emb, windows.frame_index, windows.frame_mask)  # (T, H, N, 256)
             acts = gather_windows(table[actions], windows.action_index, windows.action_mask)
-            h_o = nn.relu(nn.Dense(self.hidden, name="FrameFF")(jnp.moveaxis(frames, 1, 2).reshape(T, n, -1)))
-            h_a = nn.relu(nn.Dense(self.hidden, name="ActionFF")(jnp.moveaxis(acts, 1, 2).reshape(T, n, -1)))
+            h_o = nn.relu(Dense(self.hidden, name="FrameFF")(jnp.moveaxis(frames, 1, 2).reshape(T, n, -1)))
+            h_a = nn.relu(Dense(self.hidden, name="ActionFF")(jnp.moveaxis(acts, 1, 2).reshape(T, n, -1)))
         else:
             raise ValueError(f"unknown sequence model {self.sequence!r}")
         if self.combine == "full":
@@ -154,10 +154,10 @@ class SIMNet(nn.Module):
             h = jnp.concatenate([h_o, h_a], axis=-1)
         else:
             raise ValueError(f"unknown combination {self.combine!r}")
-        prediction = nn.Dense(self.target_dim, name="Forward")(h)
+        prediction = Dense(self.target_dim, name="Forward")(h)
         logits = None
         if self.inverse:
-            logits = nn.Dense((H - 1) * A, name="Inverse")(h).reshape(T, n, H - 1, A)
+            logits = Dense((H - 1) * A, name="Inverse")(h).reshape(T, n, H - 1, A)
         return emb, prediction, logits
 
     def _last(self, lstm: WindowLSTM, proj, index, mask, start) -> jnp.ndarray:
@@ -183,8 +183,8 @@ class ICMNet(nn.Module):
         phi = _flatten(conv_stack(stacks, (32, 32, 32, 32), activation=nn.elu))
         phi_t, phi_next = phi[:-1], phi[1:]
         a = jax.nn.one_hot(actions, self.num_actions)
-        f = nn.relu(nn.Dense(256, name="Forward_0")(jnp.concatenate([phi_t, a], axis=-1)))
-        prediction = nn.Dense(phi.shape[-1], name="Forward_1")(f)
-        g = nn.relu(nn.Dense(256, name="Inverse_0")(jnp.concatenate([phi_t, phi_next], axis=-1)))
-        logits = nn.Dense(self.num_actions, name="Inverse_1")(g)
+        f = nn.relu(Dense(256, name="Forward_0")(jnp.concatenate([phi_t, a], axis=-1)))
+        prediction = Dense(phi.shape[-1], name="Forward_1")(f)
+        g = nn.relu(Dense(256, name="Inverse_0")(jnp.concatenate([phi_t, phi_next], axis=-1)))
+        logits = Dense(self.num_actions, name="Inverse_1")(g)
         return phi, prediction, logits
