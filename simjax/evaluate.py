@@ -114,8 +114,9 @@ def check_args(parser: argparse.ArgumentParser, args) -> tuple:
 
 def policy_step(network, greedy: bool):
     """``(params, carry, obs (N, ...), key) -> (actions (N,) int32, carry)``: one step of the
-    policy on a batch of frames, as it acts in training (``a2c.make_trainer``'s rollout). No reset
-    flag: a caller starts each episode from ``network.initial_carry``, which is what a reset does."""
+    policy on a batch of frames, as it acts in training (``a2c.assemble_trainer``'s rollout). No
+    reset flag: a caller starts each episode from ``network.initial_carry``, which is what a reset
+    does."""
     import jax
     import jax.numpy as jnp
 

@@ -4,6 +4,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 MODULES = ("simjax", "simjax.envs", "simjax.agents", "simjax.novelty", "simjax.runs", "simjax.train",
            "simjax.fork", "simjax.evaluate", "simjax.plotting")
 REPORT = ("import os, jax\nprint(os.environ.get('XLA_FLAGS'))\nprint(jax.config.read('jax_cpu_enable_async_dispatch'))\n"
@@ -42,14 +44,15 @@ def test_a_normal_run_prints_no_import_failures():
         assert "Failed to import" not in out.stdout + out.stderr, command
 
 
-def _envs_import_graph() -> dict[str, set[str]]:
-    """{module: the simjax.envs modules it imports} for every module under simjax/envs, read
-    from the source (``from simjax.envs import raycaster`` is an import of simjax.envs.raycaster)."""
+def _import_graph(package: str = "simjax.envs") -> dict[str, set[str]]:
+    """{module: the ``package`` modules it imports} for every module under it, read from the
+    source, imports inside functions included (``from simjax.envs import raycaster`` is an
+    import of simjax.envs.raycaster)."""
     import ast
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    files = sorted((root / "simjax" / "envs").rglob("*.py"))
+    files = sorted((root / Path(*package.split("."))).rglob("*.py"))
 
     def name_of(path: Path) -> str:
         parts = path.relative_to(root).with_suffix("").parts
@@ -60,20 +63,29 @@ def _envs_import_graph() -> dict[str, set[str]]:
     for name, path in modules.items():
         targets = set()
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("simjax.envs"):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(package):
                 for alias in node.names:
                     full = f"{node.module}.{alias.name}"
                     targets.add(full if full in modules else node.module)
             elif isinstance(node, ast.Import):
-                targets |= {a.name for a in node.names if a.name.startswith("simjax.envs")}
+                targets |= {a.name for a in node.names if a.name.startswith(package)}
         graph[name] = targets - {name}
     return graph
+
+
+def _assert_no_cycle(graph: dict[str, set[str]]) -> None:
+    """A topological order exists: repeatedly take the modules whose imports are all taken."""
+    done: set[str] = set()
+    while len(done) < len(graph):
+        ready = [m for m in graph if m not in done and graph[m] <= done]
+        assert ready, f"import cycle among {sorted(set(graph) - done)}"
+        done |= set(ready)
 
 
 def test_the_envs_import_only_down_their_layers():
     """The shared floor (raycaster, brax base, episodes) < the Doom engine and MyWayHome
     (envs.doom) < the maze env and its adapters < the DMLab worlds (envs.dmlab) < the registry."""
-    graph = _envs_import_graph()
+    graph = _import_graph("simjax.envs")
 
     def layer(module: str) -> int:
         if module.startswith("simjax.envs.doom"):
@@ -87,8 +99,22 @@ def test_the_envs_import_only_down_their_layers():
     assert {"simjax.envs.doom.motion", "simjax.envs.dmlab.melon", "simjax.envs.maze"} <= graph.keys()
     upward = [(m, t) for m, targets in graph.items() for t in targets if layer(t) > layer(m)]
     assert upward == []
-    done: set[str] = set()  # and no cycle within a layer: a topological order exists
-    while len(done) < len(graph):
-        ready = [m for m in graph if m not in done and graph[m] <= done]
-        assert ready, f"import cycle among {sorted(set(graph) - done)}"
-        done |= set(ready)
+    _assert_no_cycle(graph)  # and no cycle within a layer
+
+
+def test_the_agents_import_only_down_their_layers():
+    """The config < A2C (the rollout, the loss, its rule, the loop) < A3C's rule (built on A2C's
+    loss) < the trainer, which picks the rule (issue 52: a2c.py imported a3c.py inside
+    make_trainer, and a3c.py imports a2c.py) < the package."""
+    graph = _import_graph("simjax.agents")
+    layer = {"simjax.agents.config": 0, "simjax.agents.a2c": 1, "simjax.agents.a3c": 2, "simjax.agents.trainer": 3,
+             "simjax.agents": 4}
+    assert graph.keys() == layer.keys()  # a new module takes its place here
+    upward = [(m, t) for m, targets in graph.items() for t in targets if layer[t] >= layer[m]]
+    assert upward == []
+    _assert_no_cycle(graph)
+
+
+def test_the_import_cycle_check_finds_one():
+    with pytest.raises(AssertionError, match="import cycle"):
+        _assert_no_cycle({"a": {"b"}, "b": {"a"}, "c": set()})

@@ -1,6 +1,6 @@
 """Synchronous LSTM-A2C (the paper's LSTM-A3C with its asynchronous actors made a ``vmap``).
 
-``make_train(config)`` returns a pure ``train(key)``: N environments step in one ``jax.vmap``,
+``simjax.agents.make_train(config)`` returns a pure ``train(key)``: N environments step in one ``jax.vmap``,
 a rollout of T steps is a ``lax.scan``, and ``lax.scan`` over updates runs a whole chunk of K
 updates inside one compiled call. Seeds are a ``jax.vmap`` of the same functions over keys.
 
@@ -34,8 +34,9 @@ A2C's (Adam of (eta g, eta eps) is Adam of (g, eps)); the novelty model's at max
 Scaling epsilon matters: the policy gradients of eta * loss_A2C are ~1e-6 per parameter, below
 Adam's usual 1e-5, which would otherwise shrink the policy's steps several-fold.
 
-That update is one rule (``a2c_rule``); ``make_trainer`` builds the rollout, the loss and the
-loop around whichever rule ``config.learner`` names, A3C's being ``simjax.agents.a3c``'s.
+That update is one rule (``a2c_rule``); ``assemble_trainer`` builds the rollout and the loop
+around a rule, and ``simjax.agents.trainer.make_trainer`` hands it the one ``config.learner``
+names (A3C's is ``simjax.agents.a3c``'s), so this module imports neither a3c nor the trainer.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ from simjax.novelty import METRICS as NOVELTY_METRICS
 from simjax.novelty import Novelty, make_novelty
 from simjax.novelty.ec_pretrain import make_pretrainer
 
-ADAM_EPS = 1e-5
+A2C_ADAM_EPS = 1e-5  # Adam's epsilon under A2C (A3C's is simjax.agents.a3c.TF_ADAM_EPS, 1e-8)
 
 
 class Transition(NamedTuple):
@@ -129,10 +130,12 @@ def n_step_returns(rewards, dones, truncations, values, gamma: float):
 
 
 def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bonus, config: TrainConfig,
-             hyper: Hyper | None = None):
+             hyper: Hyper | None = None, step_weights=None):
     """The A2C objective on one rollout, and its parts for logging; the numbers come from
     ``hyper`` (default ``config.hyper()``), the structure (``bonus_episodic``, ``reward_clip``,
-    ``bootstrap_time_limit``) from ``config``."""
+    ``bootstrap_time_limit``) from ``config``. The objective is the mean over the (T, N) steps,
+    or with ``step_weights`` (T, N) the weighted sum sum_t w_t l_t of the steps' losses l_t (A3C's
+    pieces, ``simjax.agents.a3c``); the logged parts are the plain means either way."""
     hyper = config.hyper() if hyper is None else hyper
     obs = jnp.concatenate([traj.obs, last_obs[None]], axis=0)
     reset = jnp.concatenate([traj.reset, last_reset[None]], axis=0)
@@ -161,7 +164,12 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
     squared = (returns - value) ** 2
     value_loss = jnp.mean(squared if config.bonus_episodic else squared.sum(-1))
     entropy_mean = jnp.mean(entropy)
-    loss = policy_loss + hyper.value_coef * value_loss - hyper.entropy_coef * entropy_mean
+    if step_weights is None:
+        loss = policy_loss + hyper.value_coef * value_loss - hyper.entropy_coef * entropy_mean
+    else:
+        per_step = (-log_pi * advantage + hyper.value_coef * (squared if config.bonus_episodic else squared.sum(-1))
+                    - hyper.entropy_coef * entropy)
+        loss = jnp.sum(step_weights * per_step)
     return loss, {
         "policy_loss": policy_loss,
         "value_loss": value_loss,
@@ -183,7 +191,7 @@ def frozen(tx: optax.GradientTransformation) -> optax.GradientTransformation:
 
 class UpdateRule(NamedTuple):
     """How an update turns a rollout into new parameters: A2C's (``a2c_rule``) or A3C's
-    (``simjax.agents.a3c.a3c_rule``); ``make_trainer`` builds the rest around it.
+    (``simjax.agents.a3c.a3c_rule``); ``assemble_trainer`` builds the rest around it.
 
     ``init(params, hyper) -> opt_state``; ``step(runner, traj, last_obs, last_reset, key) ->
     (params, opt_state, key, info, novelty_state)``: ``runner`` as the rollout ``traj`` started
@@ -204,7 +212,7 @@ def a2c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> Upd
         """Adam per parameter group, built from the runner's (traced) settings each update: its
         state (counts and moments) does not depend on them, so any values share one program."""
         def group(scale):
-            clip, eps = scale * hyper.max_grad_norm, scale * ADAM_EPS
+            clip, eps = scale * hyper.max_grad_norm, scale * A2C_ADAM_EPS
             return optax.chain(optax.clip_by_global_norm(clip), optax.adam(hyper.learning_rate, eps=eps))
 
         novelty_group = group(1.0) if novelty.trainable else frozen(group(1.0))
@@ -238,19 +246,18 @@ def a2c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> Upd
     return UpdateRule(init, step, loss_fn, optimizer)
 
 
-def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) -> Trainer:
-    """The learner for ``config``; ``novelty`` overrides the model ``config.algo`` names. The
-    rollout, the loss and the loop are this module's; the update rule is ``config.learner``'s."""
+RuleMaker = Callable[[TrainConfig, ActorCritic, Novelty], UpdateRule]
+
+
+def assemble_trainer(config: TrainConfig, make_rule: RuleMaker, env=None, novelty: Novelty | None = None) -> Trainer:
+    """The learner for ``config`` with the update rule ``make_rule(config, network, novelty)``;
+    ``novelty`` overrides the model ``config.algo`` names. The rollout and the loop are this
+    module's. ``simjax.agents.trainer.make_trainer`` picks the rule ``config.learner`` names."""
     env = make(config.env) if env is None else env
     network = ActorCritic(num_actions=env.action_size, two_values=not config.bonus_episodic)
     if novelty is None:  # the model must read the env's observations: checked here, before compiling
         novelty = make_novelty(config.novelty, env.action_size, env.observation_size, task=config.env)
-    if config.learner == "a3c":
-        from simjax.agents.a3c import a3c_rule  # here, not at the top: a3c builds on this module
-
-        rule = a3c_rule(config, network, novelty)
-    else:
-        rule = a2c_rule(config, network, novelty)
+    rule = make_rule(config, network, novelty)
 
     N, T = config.num_envs, config.rollout_len
 
@@ -312,11 +319,6 @@ def make_trainer(config: TrainConfig, env=None, novelty: Novelty | None = None) 
         return jax.lax.scan(lambda r, _: run_chunk(r), runner, None, config.num_logs)
 
     return Trainer(init, run_chunk, train, network, novelty, pretrain, collect, rule.loss, rule.optimizer)
-
-
-def make_train(config: TrainConfig, env=None):
-    """A pure ``train(key) -> (final RunnerState, per-chunk metrics)``; vmap it over keys."""
-    return make_trainer(config, env).train
 
 
 def summarize(chunk: dict) -> dict:

@@ -8,8 +8,11 @@ step it makes 16x the updates of a synchronous batch of 16; at 1e-4 (and 3e-4) s
 A2C did not move off the random policy's success on maze-dense in 1M steps, at 1e-3 it did
 (docs/results.md has the runs).
 
-``learner="a3c"`` (``simjax.agents.a3c``) is A3C's update rule as the ICM code runs it (one
-Adam step per actor, in sequence), and its defaults are that code's: learning rate 1e-4,
+``learner="a3c"`` (``simjax.agents.a3c``) is A3C's update rule as the ICM code runs it (each
+actor's steps cut at episode ends into pieces, one step per piece, in sequence, of one Adam per
+parameter group that all actors share: the ICM code's Adam slots live on its parameter server
+and its chief alone initialises them, src/worker.py:41-43, 78-85; ``a3c`` runs before issue 52
+gave each actor an Adam of its own), and its defaults are that code's: learning rate 1e-4,
 gradient clip 40, value weight 0.25 on the mean squared error (its 0.5 times half the squared
 error), rewards clipped to [-1, 1] where the task's rewards lie there anyway, no bootstrap at
 the time limit (``LEARNER_DEFAULTS``).
@@ -76,9 +79,9 @@ class TrainConfig:
     rollout_len: int = _f(20, "steps per environment per update (T), n-step return horizon")
     learner: str = dataclasses.field(default="a2c", metadata={
         "choices": LEARNERS,
-        "help": "update rule: a2c (one Adam step on the N envs' mean loss) | a3c (each env an actor with its own "
-                "Adam, its summed T-step loss's gradient applied one actor after another: A3C's rule as the ICM "
-                "code runs it)"})
+        "help": "update rule: a2c (one Adam step on the N envs' mean loss) | a3c (each env an actor, its steps cut "
+                "at episode ends into pieces, each piece's gradient of 20 x its mean loss applied one after another "
+                "to one Adam the actors share: A3C's rule as the ICM code runs it)"})
     learning_rate: float | None = _f(None, "Adam learning rate (default: 1e-3 with --learner a2c; the paper's "
                                      "1e-4 with a3c)")
     gamma: float = _f(0.99, "discount")
@@ -86,7 +89,7 @@ class TrainConfig:
                                   "with --learner a2c; 0.25 with a3c, the ICM code's 0.5 x half the squared error)")
     entropy_coef: float = _f(0.01, "weight of the policy entropy bonus")
     max_grad_norm: float | None = _f(None, "global gradient-norm clip, per parameter group (policy, novelty "
-                                     "model) (default: 0.5 with --learner a2c; 40, per actor, with a3c)")
+                                     "model) (default: 0.5 with --learner a2c; 40, per piece's gradient, with a3c)")
     task_scale: float = _f(1.0, "scale of the extrinsic reward: r = task_scale * r_e + bonus")
     reward_clip: bool | None = _f(None, "clip each step's reward r (task plus bonus) to [-1, 1], as the ICM code "
                                   "does in its Doom runs (default: on with --learner a3c where the task's "

@@ -114,15 +114,19 @@ class Novelty:
         obs_stats = state.obs_stats.update(obs) if self.obs_norm else state.obs_stats
         return Prepared(timeline, memory, obs_stats)
 
-    def model_loss(self, params, model_state, prepared: Prepared, hyper=None):
+    def model_loss(self, params, model_state, prepared: Prepared, hyper=None, targets=None):
         """``(loss, (error, scored, metrics, model_state))``: the model on ``prepared``'s
         timeline, its frames normalised by ``prepared.obs_stats``; ``model_state`` is a stateful
-        model's own state (``NoveltyState.model``, leading axis: environment)."""
+        model's own state (``NoveltyState.model``, leading axis: environment). ``targets`` (T, N)
+        bool: the loss of those transitions alone (``models``); a stateful model (EC) takes none."""
         tl, x = prepared.timeline, self._frames(prepared.timeline, prepared.obs_stats)
         if getattr(self.model, "stateful", False):
+            if targets is not None:
+                raise ValueError(f"{type(self.model).__name__}'s loss is not one of transitions: it takes no targets")
             error, scored, loss, metrics, model_state = self.model.apply_with_state(params, model_state, tl, x, hyper)
         else:
-            error, scored, loss, metrics = self.model.apply(params, tl, x, hyper)
+            extra = {} if targets is None else {"targets": targets}
+            error, scored, loss, metrics = self.model.apply(params, tl, x, hyper, **extra)
         return loss, (error, scored, metrics, model_state)
 
     def bonus_and_state(self, state: NoveltyState, prepared: Prepared, error, scored, metrics, model_state,

@@ -3,9 +3,11 @@
 A model is a frozen dataclass with
     history                       frames/actions each environment keeps across rollouts (M)
     init(key, tl, x) -> params    tl: a Timeline, x: its frames normalised (``base``)
-    apply(params, tl, x, hyper=None) -> (error (T, N), scored (T, N) bool, loss, metrics)
+    apply(params, tl, x, hyper=None, targets=None) -> (error (T, N), scored (T, N) bool, loss, metrics)
 ``hyper`` (a ``NoveltyHyper``, traced when a sweep varies it) gives the values a model may run
-with instead of its own: lambda, and SIM's H and L.
+with instead of its own: lambda, and SIM's H and L. ``targets`` (T, N) bool, if given, limits
+the transitions ``loss`` averages over to those it marks (A3C's pieces of a rollout, cut at
+episode ends: ``simjax.agents.a3c``); ``error``, ``scored`` and ``metrics`` do not change.
 ``error`` is the per-transition novelty before scaling (the bonus is beta * error where
 ``scored``, 0 elsewhere); ``loss`` is the model's share of eq. (8), lambda * L_F + (1 - lambda)
 * L_I, already weighted; ``metrics`` holds ``forward_loss`` and ``inverse_loss``.
@@ -42,13 +44,14 @@ class RND:
         frames = x[tl.history + 1 :]
         return {"target": RNDTarget().init(k_t, frames), "predictor": RNDPredictor().init(k_p, frames)}
 
-    def apply(self, params, tl: Timeline, x, hyper=None):
+    def apply(self, params, tl: Timeline, x, hyper=None, targets=None):
         frames = x[tl.history + 1 :]  # the target frames o_1 ... o_T
         target = jax.lax.stop_gradient(RNDTarget().apply(params["target"], frames))
         error = half_squared_error(RNDPredictor().apply(params["predictor"], frames), target)
         scored = in_episode(tl, 1)
         forward = masked_mean(error, scored)
-        return error, scored, forward, {"forward_loss": forward, "inverse_loss": jnp.zeros(())}
+        loss = forward if targets is None else masked_mean(error, scored & targets)
+        return error, scored, loss, {"forward_loss": forward, "inverse_loss": jnp.zeros(())}
 
 
 class Windows(NamedTuple):
@@ -135,7 +138,7 @@ class SIM:
             params["target"] = RNDTarget().init(k_t, x[tl.history + 1 :])
         return params
 
-    def apply(self, params, tl: Timeline, x, hyper=None):
+    def apply(self, params, tl: Timeline, x, hyper=None, targets=None):
         """``hyper`` (optional): ``obs_len``, ``act_len`` and ``forward_weight`` to run with."""
         w = self.windows(tl, *((hyper.obs_len, hyper.act_len) if hyper is not None else (None, None)))
         lam = self.forward_weight if hyper is None else hyper.forward_weight
@@ -148,16 +151,22 @@ class SIM:
         # scored: the window's newest frame, o_{t-L}, is in o_t's episode (so o_t is no reset frame)
         scored = w.frame_mask[:, -1]
         forward = masked_mean(error, scored)
+        counted = scored if targets is None else scored & targets  # the transitions the loss averages over
         if self.inverse:
             # the actions taken at the window's frames but the last: (T, N, H_max - 1)
             labels = jnp.moveaxis(tl.actions[w.frame_index[:, :-1]], 1, 2)
             log_p = jax.nn.log_softmax(logits)
             ce = -jnp.take_along_axis(log_p, labels[..., None], axis=-1)[..., 0]
-            inverse = masked_mean(ce, jnp.moveaxis(w.frame_mask[:, :-1], 1, 2) & scored[..., None])
-            loss = lam * forward + (1.0 - lam) * inverse
+            inverse_mask = jnp.moveaxis(w.frame_mask[:, :-1], 1, 2)
+            inverse = masked_mean(ce, inverse_mask & scored[..., None])
+            if targets is None:
+                loss = lam * forward + (1.0 - lam) * inverse
+            else:
+                loss = (lam * masked_mean(error, counted)
+                        + (1.0 - lam) * masked_mean(ce, inverse_mask & counted[..., None]))
         else:
             inverse = jnp.zeros(())
-            loss = lam * forward
+            loss = lam * (forward if targets is None else masked_mean(error, counted))
         return error, scored, loss, {"forward_loss": forward, "inverse_loss": inverse}
 
 
@@ -196,7 +205,7 @@ class ICM:
     def init(self, key, tl: Timeline, x):
         return {"icm": ICMNet(self.num_actions).init(key, self.stacks(tl), tl.actions[tl.history :])}
 
-    def apply(self, params, tl: Timeline, x, hyper=None):
+    def apply(self, params, tl: Timeline, x, hyper=None, targets=None):
         """``hyper`` (optional): the ``forward_weight`` to run with."""
         lam = self.forward_weight if hyper is None else hyper.forward_weight
         actions = tl.actions[tl.history :]  # a_0 ... a_{T-1}
@@ -206,5 +215,9 @@ class ICM:
         forward = masked_mean(error, scored)
         ce = -jnp.take_along_axis(jax.nn.log_softmax(logits), actions[..., None], axis=-1)[..., 0]
         inverse = masked_mean(ce, scored)
-        loss = lam * forward + (1.0 - lam) * inverse
+        if targets is None:
+            loss = lam * forward + (1.0 - lam) * inverse
+        else:
+            counted = scored & targets
+            loss = lam * masked_mean(error, counted) + (1.0 - lam) * masked_mean(ce, counted)
         return error, scored, loss, {"forward_loss": forward, "inverse_loss": inverse}
