@@ -504,10 +504,13 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=None, help="Markdown file to append the results to")
     parser.add_argument("--task", default="maze-dense")
     parser.add_argument("--devices-probe", action="store_true", help=argparse.SUPPRESS)
-    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile", "ec", "loop"), default=None,
+    parser.add_argument("--only", choices=("sweep", "devices", "gymnasium", "compile", "ec", "loop", "precision"),
+                        default=None,
                         help="run only the sweep-overhead, the device-count, the Gymnasium, the compile-time, "
-                             "EC's rows (its loop at 3 seeds, its pretraining's updates) or the training loop's")
-    parser.add_argument("--seeds", default="1,2,3,4", help="--only loop: the seed counts (default 1,2,3,4)")
+                             "EC's rows (its loop at 3 seeds, its pretraining's updates), the training loop's, or "
+                             "the training loop's at highest and at bfloat16 side by side (precision)")
+    parser.add_argument("--seeds", default="1,2,3,4", help="--only loop, precision: the seed counts (default 1,2,3,4)")
+    parser.add_argument("--algos", default=",".join(LOOP_ALGOS), help="--only precision: the methods")
     parser.add_argument("--precision", choices=tuple(runtime.MATMUL_PRECISIONS), default=TrainConfig.precision,
                         help=f"float32 matmul precision, as simjax.train's (default: {TrainConfig.precision})")
     args = parser.parse_args(argv)
@@ -672,10 +675,52 @@ def ec_lines(loop: dict, pre: dict) -> list[str]:
             f"{pre['flops_per_pair'] / 1e9:.2f} GFLOPs per pair"]
 
 
+def bf16_matmul_peak(n: int = 2048, repeats: int = 5) -> float:
+    """FLOP/s of a 2048x2048 product with bfloat16 operands summed in float32 (``--precision
+    bfloat16``'s products)."""
+    a = jax.random.normal(jax.random.PRNGKey(0), (n, n), jnp.float32).astype(jnp.bfloat16)
+    _, med, _ = time_call(lambda x: jax.lax.dot(x, x, preferred_element_type=jnp.float32), a, repeats=repeats)
+    return 2 * n**3 / med
+
+
+def report_precision(args) -> int:
+    """The training loop (``bench_loop``) of each method at each seed count, at highest and at
+    bfloat16 one after the other in this process, with both matmul peaks measured now."""
+    started = time.time()
+    peak, peak16 = matmul_peak(), bf16_matmul_peak()
+    seeds = [int(n) for n in args.seeds.split(",")]
+    algos = args.algos.split(",")
+    command = f"python experiments/bench.py --only precision --seeds {args.seeds} --algos {args.algos}"
+    lines = [f"## {dt.date.today().isoformat()}: `{command}` ({args.task})", "",
+             machine_line(peak, "highest") + f" bfloat16 operands, float32 sums, same product: {peak16 / 1e9:.0f} "
+             "GFLOP/s.", "",
+             "The training loop as `make train` runs it (`bench_loop`: 16 envs a seed, 8 updates a call, median of 3 "
+             "calls), agent steps/s over all seeds, each row's two precisions measured one after the other:", "",
+             "| method | seeds | highest (float32) | bfloat16 | ratio |", "|---|---:|---:|---:|---:|"]
+    for algo in algos:
+        for n in seeds:
+            rates = {}
+            for precision in ("highest", "bfloat16"):
+                with runtime.matmul_precision(precision):
+                    rates[precision] = bench_loop(args.task, algo, n)["steps_per_s"]
+            lines.append(f"| {algo.upper()} | {n} | {rates['highest']:.0f} | {rates['bfloat16']:.0f} | "
+                         f"{rates['bfloat16'] / rates['highest']:.2f}x |")
+            print(lines[-1], flush=True)
+    lines += ["", f"Took {time.time() - started:.0f} s.", ""]
+    text = "\n".join(lines)
+    print(text)
+    if args.out:
+        with open(args.out, "a") as f:
+            f.write(text + "\n")
+    return 0
+
+
 def report_only(args) -> int:
     """Only the sweep-overhead, device-count, Gymnasium, compile-time, EC or loop rows, as their own section."""
     started = time.time()
     peak = matmul_peak()
+    if args.only == "precision":
+        return report_precision(args)
     command = " ".join(["python experiments/bench.py --only", args.only] + (["--seeds", args.seeds] if args.only == "loop" else [])
                        + (["--precision", args.precision] if args.precision != TrainConfig.precision else []))
     lines = [f"## {dt.date.today().isoformat()}: `{command}` ({args.task})", "", machine_line(peak, args.precision), ""]

@@ -29,7 +29,7 @@ def enable_compilation_cache() -> None:
 # cores take them as they are; JAX's dot-algorithm setting does not reach AMX) and float32
 # products everywhere else (the renderer's geometry), under a JAX setting of its own that keeps
 # jit's cache apart (layers.BFLOAT16_JAX_PRECISION).
-MATMUL_PRECISIONS = {"highest": "highest", "high": "high", "default": "default", "bfloat16": "F32_F32_F32"}  # = BFLOAT16_JAX_PRECISION
+MATMUL_PRECISIONS = {"highest": "highest", "high": "high", "default": "default", "bfloat16": "float32"}  # = BFLOAT16_JAX_PRECISION
 
 
 def matmul_precision(name: str):

@@ -318,4 +318,4 @@ def test_a_run_is_traced_at_its_recorded_precision_whatever_jax_global_setting(t
     finally:
         jax.config.update("jax_default_matmul_precision", previous)
     # resumed as it was configured: bfloat16 operands in the networks, float32 products elsewhere
-    assert seen == [(runtime.MATMUL_PRECISIONS["bfloat16"], jnp.bfloat16)] * 2 == [("F32_F32_F32", jnp.bfloat16)] * 2
+    assert seen == [(runtime.MATMUL_PRECISIONS["bfloat16"], jnp.bfloat16)] * 2 == [("float32", jnp.bfloat16)] * 2

@@ -55,18 +55,20 @@ def orthogonal(scale: float = 1.0) -> nn.initializers.Initializer:
 # The operand dtype of every network matmul (``--precision``): float32, or bfloat16 operands
 # summed in float32. Read when a program is traced. jit's cache keys on JAX's own matmul
 # precision, not on this setting, so ``matmul_operands`` sets that too: bfloat16 operands trace
-# under the dot algorithm F32_F32_F32 (float32 products, HIGHEST under a name of its own, for
-# the float32 products outside the networks, such as the renderer's), and a program traced with
-# float32 operands is never reused for bfloat16 ones or the other way round.
+# under JAX's "float32" (HIGHEST under a name of its own, for the float32 products outside the
+# networks, such as the renderer's), float32 ones under "highest", and a program traced with one
+# is not reused for the other. (The dot algorithm F32_F32_F32 would be a name no one else uses,
+# but XLA:CPU runs products that name an algorithm off its fast path: SIM's loop at 1,118
+# against 1,692 agent steps/s.)
 _OPERANDS: contextvars.ContextVar = contextvars.ContextVar("simjax_matmul_operands", default=jnp.float32)
-BFLOAT16_JAX_PRECISION = "F32_F32_F32"
+BFLOAT16_JAX_PRECISION = "float32"
 
 
 @contextlib.contextmanager
 def matmul_operands(dtype):
     """Within it, ``matmul`` (every Dense, PatchConv and LSTM product of simjax's networks) casts
     its operands to ``dtype`` (float32 or bfloat16) and sums in float32; JAX's matmul precision
-    is F32_F32_F32 for bfloat16 and highest for float32 (``simjax.runtime.matmul_precision``
+    is "float32" for bfloat16 and "highest" for float32 (the same products) (``simjax.runtime.matmul_precision``
     sets its own on top, for float32)."""
     if jnp.dtype(dtype) not in (jnp.dtype(jnp.float32), jnp.dtype(jnp.bfloat16)):
         raise ValueError(f"matmul operands must be float32 or bfloat16, got {dtype}")
