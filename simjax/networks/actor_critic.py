@@ -73,7 +73,7 @@ class ResetLSTM(nn.Module):
         def step(carry, xs):
             p, fresh = xs
             c, h = jax.tree.map(lambda v: jnp.where(fresh[:, None], jnp.zeros_like(v), v), carry)
-            i, f, g, o = jnp.split(p + matmul(h, w_h) + bias, 4, axis=-1)
+            i, f, g, o = jnp.split((matmul(h, w_h) + bias) + p, 4, axis=-1)  # flax's order of the sums
             c = nn.sigmoid(f) * c + nn.sigmoid(i) * jnp.tanh(g)
             h = nn.sigmoid(o) * jnp.tanh(c)
             return (c, h), h
