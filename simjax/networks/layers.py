@@ -67,9 +67,9 @@ BFLOAT16_JAX_PRECISION = "float32"
 @contextlib.contextmanager
 def matmul_operands(dtype):
     """Within it, ``matmul`` (every Dense, PatchConv and LSTM product of simjax's networks) casts
-    its operands to ``dtype`` (float32 or bfloat16) and sums in float32; JAX's matmul precision
-    is "float32" for bfloat16 and "highest" for float32 (the same products) (``simjax.runtime.matmul_precision``
-    sets its own on top, for float32)."""
+    its operands to ``dtype`` (float32 or bfloat16) and sums in float32. JAX's matmul precision
+    is "float32" with bfloat16 operands and "highest" with float32 ones, the same products under
+    two names; ``simjax.runtime.matmul_precision`` sets its own on top of the latter."""
     if jnp.dtype(dtype) not in (jnp.dtype(jnp.float32), jnp.dtype(jnp.bfloat16)):
         raise ValueError(f"matmul operands must be float32 or bfloat16, got {dtype}")
     bf16 = jnp.dtype(dtype) == jnp.bfloat16
@@ -123,9 +123,8 @@ _bf16_matmul.defvjp(_bf16_matmul_fwd, _bf16_matmul_bwd)
 def matmul(a: jnp.ndarray, b: jnp.ndarray) -> jnp.ndarray:
     """a (..., K) @ b (K, N) -> (..., N) in float32, with the operands ``matmul_operands`` sets:
     float32 (``a @ b``) or bfloat16 (cast, multiplied, summed in float32; the gradient's
-    products likewise). The result is float32 either way; an operand may come in bfloat16
-    already (patches gathered from a bfloat16 map: half the bytes to move), and its gradient is
-    then bfloat16 too; params come in float32 and their gradients are float32."""
+    products likewise). The result is float32 either way. An operand that comes in bfloat16
+    gets a bfloat16 gradient; params come in float32 and their gradients are float32."""
     if operand_dtype() == jnp.float32:
         return a @ b
     lead = a.shape[:-1]
