@@ -675,6 +675,16 @@ def ec_lines(loop: dict, pre: dict) -> list[str]:
             f"{pre['flops_per_pair'] / 1e9:.2f} GFLOPs per pair"]
 
 
+def write_section(lines: list[str], started: float, out: Path | None) -> int:
+    """Print a section (with how long it took) and append it to ``out`` if given."""
+    text = "\n".join(lines + ["", f"Took {time.time() - started:.0f} s.", ""])
+    print(text)
+    if out:
+        with open(out, "a") as f:
+            f.write(text + "\n")
+    return 0
+
+
 def bf16_matmul_peak(n: int = 2048, repeats: int = 5) -> float:
     """FLOP/s of a 2048x2048 product with bfloat16 operands summed in float32 (``--precision
     bfloat16``'s products)."""
@@ -706,21 +716,15 @@ def report_precision(args) -> int:
             lines.append(f"| {algo.upper()} | {n} | {rates['highest']:.0f} | {rates['bfloat16']:.0f} | "
                          f"{rates['bfloat16'] / rates['highest']:.2f}x |")
             print(lines[-1], flush=True)
-    lines += ["", f"Took {time.time() - started:.0f} s.", ""]
-    text = "\n".join(lines)
-    print(text)
-    if args.out:
-        with open(args.out, "a") as f:
-            f.write(text + "\n")
-    return 0
+    return write_section(lines, started, args.out)
 
 
 def report_only(args) -> int:
     """Only the sweep-overhead, device-count, Gymnasium, compile-time, EC or loop rows, as their own section."""
-    started = time.time()
-    peak = matmul_peak()
     if args.only == "precision":
         return report_precision(args)
+    started = time.time()
+    peak = matmul_peak()
     command = " ".join(["python experiments/bench.py --only", args.only] + (["--seeds", args.seeds] if args.only == "loop" else [])
                        + (["--precision", args.precision] if args.precision != TrainConfig.precision else []))
     lines = [f"## {dt.date.today().isoformat()}: `{command}` ({args.task})", "", machine_line(peak, args.precision), ""]
@@ -737,13 +741,7 @@ def report_only(args) -> int:
         lines += loop_lines([bench_loop(args.task, algo, n) for algo in LOOP_ALGOS for n in seeds], {}, peak)
     else:
         lines += gymnasium_lines(bench_gymnasium(args.task))
-    lines += ["", f"Took {time.time() - started:.0f} s.", ""]
-    text = "\n".join(lines)
-    print(text)
-    if args.out:
-        with open(args.out, "a") as f:
-            f.write(text + "\n")
-    return 0
+    return write_section(lines, started, args.out)
 
 
 if __name__ == "__main__":
