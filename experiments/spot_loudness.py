@@ -3,7 +3,7 @@ RND target (SIM's and RND's prediction target) over random walks from each of th
 spawn spots, in each of its two worlds and through both of the novelty models' frame pipelines.
 
     python experiments/spot_loudness.py [--walks 16] [--steps 40] [--targets 4] [--worlds A,B,...]
-        [--assets NPZ]
+        [--assets NPZ] [--slopes 0.01,0.2]
 
 *Spread* is half the summed variance of the target's 64 outputs over a set of frames: the error
 of a model that predicts their mean target, averaged over ``--targets`` random targets. A
@@ -27,6 +27,11 @@ as three equal channels).
 Prints per spot: its distance to the goal and the spread in each (world, pipeline), then per
 column the ratio of the loudest spot to the quietest and the rank of spot 26, the last spot
 before the goal (1 = loudest of the 17).
+
+``--slopes``: the target's leaky-ReLU slope below zero, one column set per slope (the runs use
+flax's 0.01; RND's code, TensorFlow's default 0.2). With more than one, it also prints, per
+(world, pipeline), Spearman's rank correlation of the 17 spots' spreads between the first slope
+and each other, and the spots that move most in rank: whether the slope reorders the spots.
 
 ``--per-texture``: which of the map's wall textures make a spot loud. ViZDoom's look through
 the runs' default pipeline (``norm``, its statistics recomputed for each world), once as it is
@@ -129,6 +134,36 @@ def per_texture(args, spots, targets, apply) -> None:
               + ("" if texture is None else f"  {grey(texture).std():16.1f}  {grey(texture).mean(0).std():17.1f}"))
 
 
+def ranks(values: np.ndarray) -> np.ndarray:
+    """Each entry's rank, 1 = largest (the spreads are continuous: ties are not expected)."""
+    order = np.argsort(-values, kind="stable")
+    out = np.empty(len(values), int)
+    out[order] = np.arange(1, len(values) + 1)
+    return out
+
+
+def spearman(a: np.ndarray, b: np.ndarray) -> float:
+    """Spearman's rank correlation of two sets of spreads (no ties)."""
+    d = ranks(a) - ranks(b)
+    n = len(a)
+    return float(1.0 - 6.0 * np.sum(d * d) / (n * (n * n - 1)))
+
+
+def reordered(columns: dict, spots: list, slopes: list) -> None:
+    """Per (world, pipeline): Spearman between the first slope's spot ranking and each other's,
+    and the spots whose rank moves most."""
+    print(f"does the slope reorder the spots? Spearman of the spots' spreads against slope {slopes[0]:g}")
+    for (look, pipe, v), other in columns.items():
+        if v == slopes[0]:
+            continue
+        base = columns[(look, pipe, slopes[0])]
+        moved = ranks(other) - ranks(base)
+        top = np.argsort(-np.abs(moved), kind="stable")[:3]
+        print(f"  {look}, {pipe}: slope {v:g}: Spearman {spearman(base, other):.3f}; loudest {spots[int(base.argmax())]}"
+              f" -> {spots[int(other.argmax())]}; spread x{np.median(other / base):.2f} (median); moved most: "
+              + ", ".join(f"spot {spots[i]} {ranks(base)[i]}->{ranks(other)[i]}" for i in top))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--walks", type=int, default=16, help="random walks per spot")
@@ -137,7 +172,17 @@ def main(argv=None) -> int:
     parser.add_argument("--per-texture", action="store_true", help="each wall texture's part in the spread (see above)")
     parser.add_argument("--worlds", default=",".join(WORLDS), help="MyWayHome tasks to compare, comma-separated")
     parser.add_argument("--assets", type=Path, help="also maze-dense drawn from this .npz of Freedoom's graphics")
+    parser.add_argument("--slopes", default="0.01",
+                        help="the target's leaky-ReLU slopes, comma-separated (the runs: 0.01; RND's code: 0.2)")
     args = parser.parse_args(argv)
+    try:
+        slopes = [float(v) for v in args.slopes.split(",")]
+    except ValueError:
+        parser.error(f"--slopes: not numbers: {args.slopes!r}")
+    if any(not 0.0 <= v < 1.0 for v in slopes) or len(set(slopes)) != len(slopes):
+        parser.error(f"--slopes: need distinct slopes in [0, 1), got {args.slopes!r}")
+    if args.per_texture and len(slopes) > 1:
+        parser.error("--per-texture takes one slope")
     if min(args.walks, args.steps, args.targets) < 1:
         parser.error("need --walks, --steps and --targets >= 1")
     worlds = args.worlds.split(",")
@@ -152,10 +197,11 @@ def main(argv=None) -> int:
         parser.error(f"--assets: no file {args.assets}")
     start = time.time()
     spots = sorted(mywayhome_map.SPAWN_SPOTS)
+    # the slope has no parameters: the same random targets under each slope
     targets = [RNDTarget().init(jax.random.PRNGKey(100 + i), jnp.zeros((1, 42, 42, 3))) for i in range(args.targets)]
-    apply = jax.jit(lambda params, x: RNDTarget().apply(params, x))
+    applies = {v: jax.jit(lambda params, x, v=v: RNDTarget(leaky_slope=v).apply(params, x)) for v in slopes}
     if args.per_texture:
-        per_texture(args, spots, targets, apply)
+        per_texture(args, spots, targets, applies[slopes[0]])
         print(f"({time.time() - start:.0f} s)")
         return 0
 
@@ -169,19 +215,23 @@ def main(argv=None) -> int:
         pipelines = {"norm": lambda f, st=stats: normalize_frames(f, st), "raw": lambda f: normalize_frames(f, None),
                      "grey": lambda f: jnp.repeat(to_unit(f).mean(-1, keepdims=True), 3, axis=-1)}
         for name, pipeline in pipelines.items():
-            columns[(look_name(task), name)] = np.asarray(
-                [np.mean([spread(apply(p, pipeline(f))) for p in targets]) for f in frames])
+            for v, apply in applies.items():
+                columns[(look_name(task), name, v)] = np.asarray(
+                    [np.mean([spread(apply(p, pipeline(f))) for p in targets]) for f in frames])
 
     goal = np.asarray(mywayhome_map.GOAL_XY)
     print(f"spread of the RND target (half its summed variance, mean of {args.targets} random targets) over "
           f"{args.walks} random walks of {args.steps} steps from each spawn spot")
-    print("spot  to goal  " + "  ".join(f"{t}, {p}".rjust(24) for t, p in columns))
+    print("spot  to goal  " + "  ".join(
+        (f"{t}, {p}" + (f", {v:g}" if len(slopes) > 1 else "")).rjust(24) for t, p, v in columns))
     for j, s in enumerate(spots):
         dist = np.linalg.norm(np.asarray(mywayhome_map.SPAWN_SPOTS[s]) - goal)
         print(f"{s:4d}  {dist:7.0f}  " + "  ".join(f"{v[j]:24.3f}" for v in columns.values()))
     g = spots.index(GOAL_SPOT)
     print("max/min       " + "  ".join(f"{v.max() / v.min():24.1f}" for v in columns.values()))
     print(f"rank of {GOAL_SPOT}    " + "  ".join(f"{int((v > v[g]).sum()) + 1:24d}" for v in columns.values()))
+    if len(slopes) > 1:
+        reordered(columns, spots, slopes)
     if args.assets is not None:
         compare_textures(args.assets)
     print(f"({time.time() - start:.0f} s)")

@@ -347,3 +347,43 @@ def test_no_wall_look_is_a_louder_tv_for_the_rnd_target():
     loudness = np.asarray([np.mean([spread(target(p, f)) for p in targets]) for f in per_look])
     assert np.all(np.isfinite(loudness)) and loudness.min() > 0
     assert loudness.max() / loudness.min() < 2.5, dict(zip(mywayhome_map.TEXTURE_NAMES, loudness.round(2)))
+
+
+def test_rnd_target_leaky_slope_is_its_slope_below_zero():
+    """``RNDTarget(leaky_slope=1)`` has no kink: with its zero biases it is linear, so
+    f(-x) = -f(x) (negation commutes with every rounding). The runs' 0.01 and RND code's 0.2
+    bend below zero, so f(-x) + f(x) is of the size of f(x), and the two slopes give different
+    targets from the same parameters (``spot_loudness.py --slopes`` compares them this way)."""
+    from simjax.novelty.networks import RNDTarget
+
+    x = jax.random.normal(jax.random.PRNGKey(3), (2, 42, 42, 3))
+    params = jax.jit(RNDTarget().init)(jax.random.PRNGKey(4), x)
+    out = {v: jax.jit(lambda p, f, v=v: RNDTarget(leaky_slope=v).apply(p, f))(params, jnp.stack([x, -x]))
+           for v in (0.01, 0.2, 1.0)}
+    chex.assert_shape(out[0.01], (2, 2, 64))
+    chex.assert_tree_all_finite(out)
+    size = {v: float(jnp.abs(o[0]).max()) for v, o in out.items()}
+    odd = {v: float(jnp.abs(o[0] + o[1]).max()) for v, o in out.items()}
+    assert odd[1.0] <= 1e-5 * size[1.0], (odd, size)
+    assert odd[0.01] > 0.1 * size[0.01] and odd[0.2] > 0.1 * size[0.2], (odd, size)
+    assert float(jnp.abs(out[0.2][0] - out[0.01][0]).max()) > 0.1 * size[0.01]
+    default = jax.jit(RNDTarget().apply)(params, jnp.stack([x, -x]))  # the same program as slope 0.01's
+    np.testing.assert_array_equal(np.asarray(default), np.asarray(out[0.01]))
+
+
+def test_spot_loudness_spearman_ranks_the_spots():
+    """The rank statistic that ``spot_loudness.py --slopes`` reports: 1 for the same order,
+    -1 for the reverse, and 1 - 6 * sum(d^2) / (n (n^2 - 1)) for one swap of neighbours."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "spot_loudness.py"
+    spec = importlib.util.spec_from_file_location("spot_loudness", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    a = np.asarray([5.0, 1.0, 3.0, 2.0, 4.0])
+    np.testing.assert_array_equal(module.ranks(a), [1, 5, 3, 4, 2])
+    assert module.spearman(a, 10 * a) == 1.0
+    assert module.spearman(a, -a) == -1.0
+    swapped = np.asarray([5.0, 1.0, 2.0, 3.0, 4.0])  # spots 3 and 4 trade ranks 3 and 4
+    assert module.spearman(a, swapped) == pytest.approx(1 - 6 * 2 / (5 * 24))

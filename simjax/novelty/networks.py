@@ -6,6 +6,8 @@ learner's ``lax.scan`` on XLA:CPU, where ``lax.conv``'s does not (see ``networks
 
 from __future__ import annotations
 
+from functools import partial
+
 import chex
 import flax.linen as nn
 import jax
@@ -23,14 +25,20 @@ def _flatten(x: jnp.ndarray) -> jnp.ndarray:
 
 class RNDTarget(nn.Module):
     """The fixed random target f*: conv 32 8x8 s4 -> conv 32 4x4 s2 -> conv 32 3x3 s1 -> fc 64,
-    orthogonal init scale sqrt(2), zero biases (VALID padding, leaky ReLU as in RND's code)."""
+    orthogonal init scale sqrt(2), zero biases (VALID padding, leaky ReLU as in RND's code).
+
+    ``leaky_slope`` is the leaky ReLU's slope below zero: flax's default 0.01 in the runs; RND's
+    code calls TensorFlow's ``leaky_relu``, whose default is 0.2, and the paper does not say
+    (``experiments/spot_loudness.py --slopes`` measures what it changes)."""
 
     features: int = 64
+    leaky_slope: float = 0.01
 
     @nn.compact
     def __call__(self, x: jnp.ndarray) -> jnp.ndarray:
         init = orthogonal(SQRT2)
-        x = conv_stack(x, (32, 32, 32), (8, 4, 3), (4, 2, 1), "VALID", nn.leaky_relu, init)
+        activation = partial(nn.leaky_relu, negative_slope=self.leaky_slope)
+        x = conv_stack(x, (32, 32, 32), (8, 4, 3), (4, 2, 1), "VALID", activation, init)
         return Dense(self.features, kernel_init=init)(_flatten(x))
 
 
