@@ -67,6 +67,13 @@ def test_a_non_episodic_bonus_return_runs_on_past_the_goal():
     _, info = a2c_loss(None, _FixedValues(values[..., 1]), None, traj, jnp.zeros((1, 2)), jnp.zeros(1, bool), bonus,
                        episodic)  # one head, rewards [1, 2, 1]: G = [1 + .5 * 2, 2, 1 + .5 * 4]
     np.testing.assert_allclose(info["policy_loss"], np.log(3) * np.mean([2.0, 2.0, 3.0]), rtol=1e-6)
+    # RND's code: the task's return discounted on its own (here 0.25) and its advantage weighed 2 : 1
+    rnd_code = dataclasses.replace(config, task_gamma=0.25, task_advantage_weight=2.0)
+    _, info = a2c_loss(None, _FixedValues(values), None, traj, jnp.zeros((1, 2)), jnp.zeros(1, bool), bonus, rnd_code)
+    # G_e = [.25 * 1, 1, 0]; G_b as above (gamma 0.5)
+    adv = np.array([2 * 0.25 + 2.25, 2 * 1.0 + 2.5, 2 * 0.0 + 3.0])
+    np.testing.assert_allclose(info["policy_loss"], np.log(3) * adv.mean(), rtol=1e-6)
+    np.testing.assert_allclose(info["value_loss"], np.mean([0.25**2 + 2.25**2, 1 + 2.5**2, 9.0]), rtol=1e-6)
 
 
 def test_a_non_episodic_bonus_trains_its_own_value_head():
@@ -104,6 +111,10 @@ def test_reward_seam():
     (dict(forward_weight=1.5), "--forward-weight"),
     (dict(rl_weight=0.0), "--rl-weight"),
     (dict(algo="a2c", bonus_episodic=False), "--bonus-episodic"),
+    (dict(algo="rnd", task_gamma=0.999), "--bonus-episodic false"),
+    (dict(algo="rnd", task_advantage_weight=2.0), "--bonus-episodic false"),
+    (dict(algo="rnd", bonus_episodic=False, task_gamma=1.5), "--task-gamma"),
+    (dict(algo="rnd", bonus_episodic=False, task_advantage_weight=-1.0), "--task-advantage-weight"),
 ])
 def test_config_rejects_bad_values(bad, match):
     with pytest.raises(ValueError, match=match):

@@ -15,9 +15,11 @@ ICM code's rule). With ``reward_clip`` each r_t is clipped to [-1, 1] first (the
 its Doom runs).
 With ``bonus_episodic=False`` (RND's non-episodic intrinsic return, Burda et al. 2018) the
 network has a second value head V_b and the two rewards get returns of their own:
-    G^e_t = task_scale * r^e_t + gamma * ((1 - done_t) G^e_{t+1} + trunc_t V_e(o_t))
+    G^e_t = task_scale * r^e_t + gamma_e * ((1 - done_t) G^e_{t+1} + trunc_t V_e(o_t))
     G^b_t = bonus_t + gamma * G^b_{t+1}        (on across episode ends), G^b_T = V_b(o_T)
-    A_t   = (G^e_t - V_e(o_t)) + (G^b_t - V_b(o_t)),  value loss: the sum of both squared errors.
+    A_t   = w (G^e_t - V_e(o_t)) + (G^b_t - V_b(o_t)),  value loss: the sum of both squared errors,
+with gamma_e = ``task_gamma`` (default gamma) and w = ``task_advantage_weight`` (default 1); RND's
+code runs gamma_e 0.999, gamma 0.99 and w = 2.
 Episodic, a positive bonus is worth about beta * r+ / (1 - gamma) to an agent that keeps going;
 once that exceeds the goal's reward, ending the episode at the goal is a loss (docs/paper-differences.md).
 The auto-resetting environment returns the new episode's first frame, not the truncated
@@ -151,12 +153,16 @@ def a2c_loss(params, network, carry0, traj: Transition, last_obs, last_reset, bo
         chex.assert_shape(values, (traj.done.shape[0] + 1, traj.done.shape[1], 2))
         never = jnp.zeros_like(traj.done)
         v = jax.lax.stop_gradient(values)
+        task_gamma = hyper.gamma if config.task_gamma is None else config.task_gamma
         returns = jnp.stack([  # each stream's reward clipped on its own: they have no sum to clip
             n_step_returns(clip(total_reward(hyper.task_scale, traj.reward, 0.0)), traj.done, truncation, v[..., 0],
-                           hyper.gamma),
+                           task_gamma),
             n_step_returns(clip(bonus), never, never, v[..., 1], hyper.gamma),
         ], axis=-1)
-        advantage = jnp.sum(returns - v[:-1], axis=-1)  # the policy follows both: A = A_task + A_bonus
+        advantages = returns - v[:-1]
+        if config.task_advantage_weight != 1.0:  # (a default run's program stays as it was)
+            advantages = advantages * jnp.asarray([config.task_advantage_weight, 1.0], advantages.dtype)
+        advantage = jnp.sum(advantages, axis=-1)  # the policy follows both: A = w A_task + A_bonus
     log_probs = jax.nn.log_softmax(logits)
     log_pi = jnp.take_along_axis(log_probs, traj.action[..., None], axis=-1)[..., 0]
     entropy = -jnp.sum(jnp.exp(log_probs) * log_probs, axis=-1)

@@ -130,6 +130,10 @@ class TrainConfig:
                               "(the paper's A2C, one value head); false: it runs on across episode "
                               "ends with its own value head (RND's non-episodic intrinsic return), so "
                               "reaching the goal does not forfeit the bonus still to come")
+    task_gamma: float | None = _f(None, "with --bonus-episodic false: the discount of the task's return (default: "
+                                  "--gamma); RND's code discounts it at 0.999 and the bonus's at 0.99, --gamma")
+    task_advantage_weight: float = _f(1.0, "with --bonus-episodic false: the policy follows A = w * A_task + "
+                                      "A_bonus; RND's code weighs them 2 : 1 (ext_coeff 2, int_coeff 1)")
     # how the command compiles the run: every float32 matmul and convolution of the program
     # (simjax.runtime.MATMUL_PRECISIONS). On a CPU highest, high and default give the numbers
     # JAX's default gives, to the bit; bfloat16 rounds the networks' operands (not the
@@ -189,6 +193,14 @@ class TrainConfig:
             )
         if self.algo == "a2c" and not self.bonus_episodic:
             raise ValueError("--bonus-episodic false gives the bonus its own return; --algo a2c has no bonus")
+        if self.task_gamma is not None and not 0.0 <= self.task_gamma <= 1.0:
+            raise ValueError(f"{flag('task_gamma')} must lie in [0, 1], got {self.task_gamma}")
+        if not (self.task_advantage_weight >= 0 and math.isfinite(self.task_advantage_weight)):
+            raise ValueError(f"{flag('task_advantage_weight')} must be a finite number >= 0, "
+                             f"got {self.task_advantage_weight}")
+        if self.bonus_episodic and (self.task_gamma is not None or self.task_advantage_weight != 1.0):
+            raise ValueError(f"{flag('task_gamma')} and {flag('task_advantage_weight')} set the task's stream apart "
+                             "from the bonus's: they need --bonus-episodic false (one return otherwise)")
         _ = self.novelty  # building the novelty settings checks their values
 
     @property

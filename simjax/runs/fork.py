@@ -24,7 +24,8 @@ from simjax.runs.folder import EXPORT, atomic_write, restore, seed_keys, write_c
 
 # settings a fork may change: how it learns and what it is paid, not what it is
 FORKABLE = ("total_steps", "learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
-            "bonus_scale", "forward_weight", "rl_weight", "bonus_norm", "bonus_episodic", "precision")
+            "bonus_scale", "forward_weight", "rl_weight", "bonus_norm", "bonus_episodic", "task_gamma",
+            "task_advantage_weight", "precision")
 
 
 def _graft(fresh, old, path=""):
