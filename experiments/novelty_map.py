@@ -22,7 +22,9 @@ bonus at the same relative accuracy (the frames are normalised with the run's gl
 statistics, so a room of bright walls over a dark floor is "louder"). Then per seed the
 Spearman correlation between visit fraction and error. A model that has learnt where the policy has been scores rarely visited
 spots higher (a negative correlation). Writes RUN_DIR/novelty_map.png: mean error per 32-unit
-square of the walks, one panel per seed.
+square of the walks, one panel per seed; and RUN_DIR/novelty_map.csv: the table above, one row
+per spot and seed. The model is scored in float32 whatever the run's ``--precision``: two runs'
+maps then differ by what their models learnt, not by how they are evaluated.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from precision_check import spearman  # noqa: E402
 from trajectories import episodes, first_episode  # noqa: E402
 
 from simjax.envs import is_mywayhome, mywayhome_spot, random_walks  # noqa: E402
@@ -47,11 +50,6 @@ from simjax.runs import restore  # noqa: E402
 
 NEAR = 96.0  # units: "came near a spot"
 CELL = 32.0  # units: the map's squares
-
-
-def spearman(a, b) -> float:
-    ra, rb = np.argsort(np.argsort(a)), np.argsort(np.argsort(b))
-    return float(np.corrcoef(ra, rb)[0, 1])
 
 
 def main(argv=None) -> int:
@@ -154,6 +152,13 @@ def main(argv=None) -> int:
         dist = np.linalg.norm(xy - start, axis=1)
         print(f"seed {s}: Spearman(visits, error) {spearman(visits[i], per_spot[i]):+.2f}, "
               f"Spearman(distance from start, error) {spearman(dist, per_spot[i]):+.2f}")
+    table = args.run / "novelty_map.csv"  # the numbers above, for comparing runs (experiments/precision_check.py)
+    with open(table, "w") as f:
+        f.write("spot,seed,visits,error" + (",spread" if has_target else "") + "\n")
+        for i, seed in enumerate(seeds):
+            for j, s in enumerate(spots):
+                f.write(f"{s},{seed},{visits[i][j]:.6g},{per_spot[i][j]:.6g}"
+                        + (f",{spreads[i][j]:.6g}" if has_target else "") + "\n")
 
     import matplotlib
 

@@ -54,10 +54,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import FLAT_MARK, check_name, is_mywayhome, make, mywayhome_base, mywayhome_look, mywayhome_spot, random_walks
-from simjax.envs.doom import mywayhome_map
-from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit
-from simjax.novelty.networks import RNDTarget
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from precision_check import ranks, spearman  # noqa: E402
+
+from simjax.envs import FLAT_MARK, check_name, is_mywayhome, make, mywayhome_base, mywayhome_look, mywayhome_spot, random_walks  # noqa: E402
+from simjax.envs.doom import mywayhome_map  # noqa: E402
+from simjax.novelty.base import RunningMeanStd, normalize_frames, spread, to_unit  # noqa: E402
+from simjax.novelty.networks import RNDTarget  # noqa: E402
 
 WORLDS = ("maze-dense", "maze-dense-invented-looks")
 GOAL_SPOT = 26  # the spot nearest the goal, at the head of its corridor
@@ -132,21 +136,6 @@ def per_texture(args, spots, targets, apply) -> None:
         print(f"{texture or 'none':10s}  " + "".join(f"{v[spots.index(s)]:9.2f}" for s in shown)
               + (f"  {ratio:7.1f}" if ratio < 1e4 else "    >1e4") + f"  {rank:10d}  {spots[int(v.argmin())]:8d}"
               + ("" if texture is None else f"  {grey(texture).std():16.1f}  {grey(texture).mean(0).std():17.1f}"))
-
-
-def ranks(values: np.ndarray) -> np.ndarray:
-    """Each entry's rank, 1 = largest (the spreads are continuous: ties are not expected)."""
-    order = np.argsort(-values, kind="stable")
-    out = np.empty(len(values), int)
-    out[order] = np.arange(1, len(values) + 1)
-    return out
-
-
-def spearman(a: np.ndarray, b: np.ndarray) -> float:
-    """Spearman's rank correlation of two sets of spreads (no ties)."""
-    d = ranks(a) - ranks(b)
-    n = len(a)
-    return float(1.0 - 6.0 * np.sum(d * d) / (n * (n * n - 1)))
 
 
 def reordered(columns: dict, spots: list, slopes: list) -> None:

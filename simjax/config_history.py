@@ -25,7 +25,8 @@ TASKS_AS_OF = "2026-12-04"
 RENAMED = {"maze-very-sparse": "maze-spot10-east", "maze-sparse": "maze-spot16-east"}
 # a config.json without one of these settings was trained with this value
 TRAINED_BEFORE_THE_FLAG = {"ec_beta": 0.5, "precision": "highest",  # precision: JAX's default, on CPUs float32
-                           "learner": "a2c", "reward_clip": False, "bootstrap_time_limit": True}
+                           "learner": "a2c", "reward_clip": False, "bootstrap_time_limit": True,
+                           "task_gamma": None, "task_advantage_weight": 1.0}  # one discount, one weight
 
 
 def renamed(name: str) -> str:

@@ -371,14 +371,15 @@ def test_rnd_target_leaky_slope_is_its_slope_below_zero():
     np.testing.assert_array_equal(np.asarray(default), np.asarray(out[0.01]))
 
 
-def test_spot_loudness_spearman_ranks_the_spots():
-    """The rank statistic that ``spot_loudness.py --slopes`` reports: 1 for the same order,
-    -1 for the reverse, and 1 - 6 * sum(d^2) / (n (n^2 - 1)) for one swap of neighbours."""
+def test_spearman_ranks_the_spots():
+    """The rank statistic that ``spot_loudness.py --slopes``, ``novelty_map.py`` and
+    ``precision_check.py`` report: 1 for the same order, -1 for the reverse, and
+    1 - 6 * sum(d^2) / (n (n^2 - 1)) for one swap of neighbours."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "experiments" / "spot_loudness.py"
-    spec = importlib.util.spec_from_file_location("spot_loudness", path)
+    path = Path(__file__).resolve().parents[1] / "experiments" / "precision_check.py"
+    spec = importlib.util.spec_from_file_location("precision_check", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     a = np.asarray([5.0, 1.0, 3.0, 2.0, 4.0])
