@@ -14,7 +14,7 @@ two-sided Fisher exact test of the two worlds' ratios being equal, to
 experiments/results/vizdoom-fidelity/random-policy-TASK.json."""
 import argparse
 import json
-import math
+import sys
 import time
 from pathlib import Path
 
@@ -22,9 +22,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from simjax.envs import make
-from simjax.envs.doom import vizdoom_ref
-from simjax.evaluate import wilson
+sys.path.insert(0, str(Path(__file__).resolve().parent / "paper"))
+
+from protocol import fisher_exact  # noqa: E402
+
+from simjax.envs import make  # noqa: E402
+from simjax.envs.doom import vizdoom_ref  # noqa: E402
+from simjax.evaluate import wilson  # noqa: E402
 
 CHUNK = 1000  # episodes per compiled batch: bounds the memory of the vmapped states
 OUT = Path(__file__).resolve().parent / "results" / "vizdoom-fidelity"
@@ -68,20 +72,6 @@ def vizdoom_successes(task: str, episodes: int, seed: int = 7) -> int:
                 reward, done = game.step(int(rng.integers(0, 4)))
             wins += reward > 0
     return int(wins)
-
-
-def fisher_exact(a: int, n: int, b: int, m: int) -> float:
-    """Two-sided Fisher exact test p-value of a/n against b/m: the probability, with the margins
-    fixed, of a table no more likely than the one seen."""
-    k = a + b
-
-    def log_p(x):  # hypergeometric: x of the k successes fall in the first sample
-        comb = lambda p, q: math.lgamma(p + 1) - math.lgamma(q + 1) - math.lgamma(p - q + 1)
-        return comb(n, x) + comb(m, k - x) - comb(n + m, k)
-
-    seen = log_p(a)
-    support = range(max(0, k - m), min(k, n) + 1)
-    return min(1.0, sum(math.exp(log_p(x)) for x in support if log_p(x) <= seen + 1e-9))
 
 
 def world(successes: int, episodes: int) -> dict:

@@ -266,3 +266,38 @@ def test_a_runs_command_spells_out_what_differs_from_its_tasks_defaults():
     sim = {"env": "maze-very-sparse", "algo": "sim", "total_steps": 1000, "num_seeds": 1, "ec_beta": 0.5}
     assert report.config_flags(sim) == ["--env", "maze-very-sparse", "--algo", "sim", "--total-steps", "1000",
                                         "--num-seeds", "1"]
+
+
+def test_fisher_exact_by_hand():
+    """Fisher's tea-tasting table, 3 of 4 against 1 of 4: two-sided p = (1 + 16 + 1 + 16) / 70,
+    every table no more likely than the one seen (the hypergeometric weights are 1, 16, 36, 16, 1)."""
+    assert protocol.fisher_exact(3, 4, 1, 4) == pytest.approx(34 / 70)
+    assert protocol.fisher_exact(2, 4, 2, 4) == pytest.approx(1.0)
+    assert protocol.fisher_exact(0, 1000, 30, 1000) < 1e-8
+
+
+def test_the_screen_counts_whole_rows_of_the_second_half_and_calls_an_arm_that_beats_the_control(tmp_path, capsys):
+    """experiments/screen.py: the second half is the rows that start at or after half the arm's
+    last step; an arm whose second half is far above the control's (Fisher p < 0.01) helps, and
+    one like the control does not."""
+    sys.path.insert(0, str(PAPER.parent))
+    import screen
+
+    s = series([0.0, 0.5, 0.25, 1.0], [10, 10, 4, 2], step=25)  # rows (0, 25], (25, 50], (50, 75], (75, 100]
+    assert screen.counts(s, 50, 100) == (1 + 2, 4 + 2)
+    assert screen.counts(s, 40, 100) == (3, 6)  # the row (25, 50] starts before 40: left out whole
+    assert screen.counts(s, 0, 75) == (0 + 5 + 1, 24)
+    config = SIM | {"total_steps": 100}
+    control = write_folder(tmp_path / "control", config, [
+        {"env_steps": 25 * (i + 1), "seed": seed, "success_ratio": 0.0, "episodes": 100} for i in range(8)
+        for seed in range(3)])
+    better = write_folder(tmp_path / "better", config, [
+        {"env_steps": 25 * (i + 1), "seed": seed, "success_ratio": 0.0 if i < 2 else 0.2, "episodes": 100}
+        for i in range(4) for seed in range(3)])
+    same = write_folder(tmp_path / "same", config, [
+        {"env_steps": 25 * (i + 1), "seed": seed, "success_ratio": 0.0, "episodes": 100}
+        for i in range(4) for seed in range(3)])
+    assert screen.main([str(better), str(same), "--control", str(control)]) == 0
+    out = capsys.readouterr().out
+    assert "second half (50, 100]: 120/600 (20.000%) against the control's 0/600" in out
+    assert out.count("HELPS") == 1 and "1 of 2 arm(s) help" in out

@@ -231,6 +231,20 @@ def steps_ratio(numerator: dict[int, float], denominator: dict[int, float], trai
     return StepsRatio(value, bound, (float(low), float(high)))
 
 
+def fisher_exact(a: int, n: int, b: int, m: int) -> float:
+    """Two-sided Fisher exact test p-value of a/n against b/m: the probability, with the margins
+    fixed, of a table no more likely than the one seen."""
+    k = a + b
+
+    def log_p(x):  # hypergeometric: x of the k successes fall in the first sample
+        comb = lambda p, q: math.lgamma(p + 1) - math.lgamma(q + 1) - math.lgamma(p - q + 1)
+        return comb(n, x) + comb(m, k - x) - comb(n + m, k)
+
+    seen = log_p(a)
+    support = range(max(0, k - m), min(k, n) + 1)
+    return min(1.0, sum(math.exp(log_p(x)) for x in support if log_p(x) <= seen + 1e-9))
+
+
 # -- curves ---------------------------------------------------------------------------------------
 
 
