@@ -79,8 +79,7 @@ PAPER_TABLE2_NOTE = ("*: the paper's text gives ICM, RND and SIM one value each,
 # a start that stands in one of the paper's columns without being that column's task exactly
 STANDS_IN = {"maze-spot10-east": "maze-sparse"}
 STANDS_IN_NOTE = ("`maze-spot10-east` (marked +): spot 10 facing exactly east, the paper's sparse start without its "
-                  "0-3.6 degree jitter; it was called maze-very-sparse until 2026-12-04, when the tasks took the "
-                  "ICM code's scenario files' starts.")
+                  "0-3.6 degree jitter ([which task is which](../../../docs/results.md#task-names)).")
 
 
 def cells(points) -> dict:
