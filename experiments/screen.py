@@ -15,6 +15,7 @@ read only up to each arm's own last agent step, so both cover the same budget. P
   last step (1M of 2M), against the control's same rows: two-sided Fisher exact test;
 - at the end (the final window's rows, the mean over rows and seeds): the bonus a step, the
   value and the policy entropy (ln 4 = 1.386 is the uniform policy's);
+- the arm's ``--precision`` where it is not the control's;
 - the verdict the issue asks for: *helps* where a seed reaches 0.9 or the second half's
   success ratio is above the control's with Fisher p < 0.01; otherwise *does not help at this
   budget* (the paper's SIM has converged by 2M).
@@ -77,6 +78,10 @@ def report(point: Point, control: Point) -> bool:
     label = point.source.name + (" (" + ", ".join(f"{k}={v}" for k, v in point.setting.items()) + ")"
                                  if point.setting else "")
     print(f"== {label}: {point.config['algo']} on {point.config['env']}, {len(point.seeds)} seeds x {last:,} agent steps")
+    ours, theirs = (c.get("precision", "highest") for c in (point.config, control.config))
+    if ours != theirs:
+        print(f"  precision {ours}, the control's {theirs} (issue 51's learning check found them within the seeds' "
+              "spread on this start: docs/usage.md#precision)")
     finals, reached = {}, {}
     for seed, series in point.seeds.items():
         final = final_success(series)

@@ -279,7 +279,7 @@ def test_fisher_exact_by_hand():
 def test_the_screen_counts_whole_rows_of_the_second_half_and_calls_an_arm_that_beats_the_control(tmp_path, capsys):
     """experiments/screen.py: the second half is the rows that start at or after half the arm's
     last step; an arm whose second half is far above the control's (Fisher p < 0.01) helps, and
-    one like the control does not."""
+    one like the control does not; an arm at another precision than the control's says so."""
     sys.path.insert(0, str(PAPER.parent))
     import screen
 
@@ -294,10 +294,11 @@ def test_the_screen_counts_whole_rows_of_the_second_half_and_calls_an_arm_that_b
     better = write_folder(tmp_path / "better", config, [
         {"env_steps": 25 * (i + 1), "seed": seed, "success_ratio": 0.0 if i < 2 else 0.2, "episodes": 100}
         for i in range(4) for seed in range(3)])
-    same = write_folder(tmp_path / "same", config, [
+    same = write_folder(tmp_path / "same", config | {"precision": "bfloat16"}, [
         {"env_steps": 25 * (i + 1), "seed": seed, "success_ratio": 0.0, "episodes": 100}
         for i in range(4) for seed in range(3)])
     assert screen.main([str(better), str(same), "--control", str(control)]) == 0
     out = capsys.readouterr().out
     assert "second half (50, 100]: 120/600 (20.000%) against the control's 0/600" in out
     assert out.count("HELPS") == 1 and "1 of 2 arm(s) help" in out
+    assert out.count("precision bfloat16, the control's highest") == 1  # said of the arm that differs, only
