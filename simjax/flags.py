@@ -65,7 +65,7 @@ def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings
     metadata has "choices" takes only those."""
     group = parser.add_argument_group(title)
     for field in dataclasses.fields(TrainConfig):
-        shown = "" if field.default is None else f" (default: {field.default})"
+        shown = "" if field.default is None else f" (default: {field.metadata.get('default_shown', field.default)})"
         kind, choices = _FIELD_TYPES[str(field.type)], field.metadata.get("choices")
         typed = {"type": list_of(kind, choices)} if lists else {"type": kind, "choices": choices}
         group.add_argument("--" + field.name.replace("_", "-"), **typed,

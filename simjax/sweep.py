@@ -16,7 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from simjax import flags
+from simjax import flags, runtime
 from simjax.novelty.settings import flag
 from simjax.runs import folder
 from simjax.runs.grid import check_sweep
@@ -41,6 +41,7 @@ def parse_sweep(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
     given = flags.given_settings(args)
+    given.setdefault("precision", [runtime.command_default_precision()])
     settings, sweep = {}, {}
     for name, values in given.items():
         if not values:

@@ -159,7 +159,7 @@ def test_a_diverging_run_stops_at_its_first_non_finite_row_and_keeps_the_last_fi
     # non-finite in the first row, 1e8 overflows to 1e17 and stays finite since the policy LSTM
     # takes its input projection out of the scan)
     code = cli.main(["--env", "maze-tiny", "--total-steps", "1280", "--log-every", "640", "--learning-rate", "1e10",
-                     "--max-grad-norm", "1e9", "--out", str(out), "--quiet"])
+                     "--max-grad-norm", "1e9", "--precision", "highest", "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
     assert code == 1
     assert "error: training diverged in the updates up to 1,280 agent steps" in err, err
@@ -294,6 +294,34 @@ def test_precision_is_a_run_setting_recorded_in_config_json(tmp_path, capsys):
     assert set(runtime.MATMUL_PRECISIONS) == set(dict(TrainConfig.__dataclass_fields__)["precision"].metadata["choices"])
     with pytest.raises(ValueError, match="--precision must be one of"):
         runtime.matmul_precision("fast")
+
+
+def test_the_commands_train_in_bfloat16_on_a_cpu_with_bfloat16_dots_unless_told_otherwise(tmp_path, monkeypatch):
+    """Given no --precision, the training and sweep commands take bfloat16 on a CPU that multiplies
+    bfloat16 in hardware (AMX or AVX-512 BF16, read from cpuinfo's flags; the tests' backend is the
+    CPU, and both answers are tried whatever this machine has) and record it; without, highest; a
+    given one wins; TrainConfig stays float32."""
+    assert jax.default_backend() == "cpu"
+    cpuinfo = tmp_path / "cpuinfo"
+    for listed, native in [("fpu avx512f avx512_vnni amx_tile amx_bf16 amx_int8", True), ("fpu avx512f avx512_bf16", True),
+                          ("fpu avx512f avx512_vnni avx2", False), ("fpu avx512_bf16x amx_bf", False)]:
+        cpuinfo.write_text(f"processor\t: 0\nmodel name\t: x\nflags\t\t: {listed}\n\nprocessor\t: 1\nflags\t\t: {listed}\n")
+        assert runtime.cpu_has_bfloat16_dots(str(cpuinfo)) is native, listed
+    assert runtime.cpu_has_bfloat16_dots(str(tmp_path / "none")) is False
+    monkeypatch.setattr(runtime, "cpu_has_bfloat16_dots", lambda: False)
+    assert cli.parse_config(["--env", "maze-tiny", "--out", str(tmp_path / "z")])[0].precision == "highest"
+    monkeypatch.setattr(runtime, "cpu_has_bfloat16_dots", lambda: True)
+    assert runtime.command_default_precision() == "bfloat16"
+    config, _, _ = cli.parse_config(["--env", "maze-tiny", "--out", str(tmp_path / "a")])
+    assert config.precision == "bfloat16" and TrainConfig(env="maze-tiny").precision == "highest"
+    runs.write_config(tmp_path, config)
+    assert json.loads((tmp_path / "config.json").read_text())["config"]["precision"] == "bfloat16"
+    config, _, _ = cli.parse_config(["--env", "maze-tiny", "--precision", "highest", "--out", str(tmp_path / "b")])
+    assert config.precision == "highest"
+    config, grid, _, _, _ = sweep_cli.parse_sweep(["--env", "maze-tiny", "--bonus-scale", "0.1,0.2", "--algo", "rnd",
+                                                   "--out", str(tmp_path / "c")])
+    assert config.precision == "bfloat16" and all(TrainConfig(**{**config.__dict__, **p}).precision == "bfloat16"
+                                                  for p in grid)
 
 
 def test_a_run_is_traced_at_its_recorded_precision_whatever_jax_global_setting(tmp_path, monkeypatch):

@@ -137,10 +137,13 @@ class TrainConfig:
     # how the command compiles the run: every float32 matmul and convolution of the program
     # (simjax.runtime.MATMUL_PRECISIONS). On a CPU highest, high and default give the numbers
     # JAX's default gives, to the bit; bfloat16 rounds the networks' operands (not the
-    # renderer's), so it can change what a run learns: highest stays the default until a
-    # learning check of bfloat16 against float32 on the same seeds says otherwise
+    # renderer's). The dataclass's default is float32 so that a config.json without the field,
+    # a test or a script gets the numbers runs had before the setting; the commands choose
+    # bfloat16 on a CPU that multiplies bfloat16 in hardware (runtime.command_default_precision),
+    # where issue 51's learning check found it learns what float32 learns
     precision: str = dataclasses.field(default="highest", metadata={
         "choices": ("highest", "high", "default", "bfloat16"),
+        "default_shown": "bfloat16 on a CPU with AMX or AVX-512 BF16, highest elsewhere",
         "help": "matmul precision: highest (float32), high and default (TF32 on NVIDIA GPUs that have it, A100 "
                 "on; on a CPU the same numbers as highest), bfloat16 (every product of the policy's and the "
                 "novelty model's networks, convolutions included, takes bfloat16 operands and sums in float32: "
