@@ -2,7 +2,8 @@
 (``simjax.train``, ``simjax.fork``).
 
 Their defaults are left to ``TrainConfig``: a parsed namespace holds exactly the flags that
-were given (``given_settings``), which is what a fork changes and what ``--resume`` refuses.
+were given (``given_settings``), which is what a fork changes and what ``--resume`` refuses. A new
+run's command adds the few that default otherwise there (``with_command_defaults``).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import argparse
 import dataclasses
 import math
 
+from simjax import runtime
 from simjax.agents import TrainConfig
 
 
@@ -75,3 +77,11 @@ def add_config_flags(parser: argparse.ArgumentParser, title: str = "run settings
 def given_settings(args: argparse.Namespace) -> dict:
     """The TrainConfig fields given on the command line, by field name."""
     return {name: getattr(args, name) for name in _FIELDS if hasattr(args, name)}
+
+
+def with_command_defaults(given: dict, lists: bool = False) -> dict:
+    """``given`` (``given_settings``) with the settings where a new run from the command line
+    defaults otherwise than ``TrainConfig``: ``--precision`` (``runtime.command_default_precision``).
+    With ``lists`` each is a one-element list, as ``simjax.sweep``'s flags are."""
+    precision = runtime.command_default_precision()
+    return {"precision": [precision] if lists else precision, **given}

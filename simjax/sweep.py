@@ -16,7 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from simjax import flags, runtime
+from simjax import flags
 from simjax.novelty.settings import flag
 from simjax.runs import folder
 from simjax.runs.grid import check_sweep
@@ -40,8 +40,7 @@ def parse_sweep(argv=None):
     """(config, grid, sweep, out, args); each refusal is argparse's one-line error (exit 2)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    given = flags.given_settings(args)
-    given.setdefault("precision", [runtime.command_default_precision()])
+    given = flags.with_command_defaults(flags.given_settings(args), lists=True)
     settings, sweep = {}, {}
     for name, values in given.items():
         if not values:

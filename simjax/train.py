@@ -17,7 +17,7 @@ import signal
 import sys
 from pathlib import Path
 
-from simjax import flags, runtime
+from simjax import flags
 from simjax.agents import TrainConfig, make_trainer
 from simjax.runs import Diverged, folder, run
 from simjax.runs.training import CHECKPOINT_EVERY, PRETRAIN_STATE, read_pretrain_state
@@ -81,9 +81,8 @@ def parse_config(argv=None) -> tuple[TrainConfig, Path, argparse.Namespace]:
         except (FileNotFoundError, ValueError, TypeError) as err:
             parser.error(str(err))
         return config, args.resume, args
-    given.setdefault("precision", runtime.command_default_precision())
     try:
-        config = TrainConfig(**given)
+        config = TrainConfig(**flags.with_command_defaults(given))
     except ValueError as err:
         parser.error(str(err))
     return config, new_run_folder(parser, config, args.out), args
