@@ -166,7 +166,8 @@ def _column(tree, axis: int):
 def a3c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> UpdateRule:
     N = config.num_envs
     trainable = novelty.trainable
-    stateful = getattr(novelty.model, "stateful", False)
+    # a stateful model whose loss is no sum over transitions (EC's ECO) gives it all with the first piece
+    whole_loss = getattr(novelty.model, "stateful", False) and not getattr(novelty.model, "per_transition_loss", False)
 
     def init(params, hyper: Hyper):
         """One optimiser state per group, shared by the actors (as the ICM code's one Adam)."""
@@ -207,7 +208,7 @@ def a3c_rule(config: TrainConfig, network: ActorCritic, novelty: Novelty) -> Upd
             one = prepared._replace(timeline=Timeline(*_column((frames, actions, segment, valid), 1), tl.history))
 
             def loss(p):
-                if stateful:  # ECO: no loss per transition; all of it with the actor's first piece
+                if whole_loss:  # ECO: no loss per transition; all of it with the actor's first piece
                     value, _ = novelty.model_loss(p, _column(model_state, 0), one, hyper.novelty)
                     return jnp.where(k == 0, scale * value, 0.0)
                 value, _ = novelty.model_loss(p, _column(model_state, 0), one, hyper.novelty,

@@ -39,6 +39,9 @@ LEARNER_DEFAULTS = {
 }
 # paper tables B.2, C.2, D.2 (ViZDoom): bonus reward scale beta per method (EC's is its alpha)
 PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01, "ec": 0.01}
+# E3B is not in the paper: the middle of its authors' ViZDoom sweep (3e-7 ... 3e-5 on the raw
+# elliptical bonus, facebookresearch/e3b sweep_slurm_neurips_2022.py); docs/paper-differences.md
+DEFAULT_BONUS_SCALE = {**PAPER_BONUS_SCALE, "e3b": 3e-6}
 # the settings that change no array shape once windows are laid out for their largest values:
 # they are arrays in the runner state (``Hyper``), so a sweep over them is one compiled program
 SWEEPABLE = ("learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",
@@ -102,7 +105,8 @@ class TrainConfig:
     log_every: int = _f(25_000, "agent steps per seed between metric rows (rounded to updates)")
     # novelty models (ignored by a2c); eq. (8): lambda L_F + (1 - lambda) L_I - eta * RL objective
     bonus_scale: float | None = _f(None, "beta, r = task_scale * r_e + beta * r+ (default: the paper's, "
-                                   "sim 0.001, rnd 0.01, icm 0.01, ec 0.01)")
+                                   "sim 0.001, rnd 0.01, icm 0.01, ec 0.01; e3b 3e-6, the middle of E3B's own "
+                                   "ViZDoom sweep)")
     forward_weight: float = _f(0.2, "lambda, forward vs inverse loss weight (sim, icm)")
     rl_weight: float = _f(0.1, "eta, weight of the RL loss against the novelty model's")
     obs_len: int = _f(10, "SIM: H, frames in the observation window (>= 2)")
@@ -124,6 +128,8 @@ class TrainConfig:
                                "code's) where every episode runs to its step limit)")
     ec_online: bool = _f(False, "EC: ECO, the reachability network also trains during the run, on pairs "
                          "of the policy's own recent frames")
+    e3b_ridge: float = _f(0.1, "E3B: lambda, each episode's feature covariance starts at lambda I (E3B's "
+                          "--ridge)")
     obs_norm: bool = _f(True, "novelty nets see frames normalised by running per-pixel mean/std")
     bonus_norm: bool = _f(False, "divide the novelty error by a running std of its discounted sum")
     bonus_episodic: bool = _f(True, "the bonus's return ends with the episode, like the task reward's "
@@ -166,7 +172,7 @@ class TrainConfig:
         if self.reward_clip is None:
             object.__setattr__(self, "reward_clip", self.learner == "a3c" and rewards_within_one(self.env))
         if self.bonus_scale is None:
-            object.__setattr__(self, "bonus_scale", PAPER_BONUS_SCALE[self.algo])
+            object.__setattr__(self, "bonus_scale", DEFAULT_BONUS_SCALE[self.algo])
         if self.ec_beta is None:
             object.__setattr__(self, "ec_beta", 1.0 if episodes_end_early(self.env) else 0.5)
         for name in ("total_steps", "num_envs", "rollout_len", "num_seeds", "log_every"):
@@ -215,6 +221,7 @@ class TrainConfig:
             act_len=self.act_len, sim_combine=self.sim_combine, sim_sequence=self.sim_sequence,
             sim_target=self.sim_target, sim_inverse=self.sim_inverse, ec_memory=self.ec_memory,
             ec_width=self.ec_width, ec_embed=self.ec_embed, ec_online=self.ec_online, ec_beta=self.ec_beta,
+            e3b_ridge=self.e3b_ridge,
         )
 
     def hyper(self) -> Hyper:

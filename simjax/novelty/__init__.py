@@ -1,4 +1,4 @@
-"""Novelty models as exploration bonuses: SIM (and its ablations), RND, ICM and EC.
+"""Novelty models as exploration bonuses: SIM (and its ablations), RND, ICM, EC and E3B.
 
 ``make_novelty(settings, num_actions, obs_shape)`` builds the ``Novelty`` object the learner is
 given from typed ``NoveltySettings``, after ``check_observation`` has made sure the model can
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from simjax.novelty.base import Memory, RunningMeanStd, Timeline, build_timeline, in_episode, init_memory
 from simjax.novelty.bonus import METRICS, Novelty, NoveltyState
+from simjax.novelty.e3b import E3B
 from simjax.novelty.ec import EC
 from simjax.novelty.models import ICM, RND, SIM, Windows
 from simjax.novelty.settings import MODELS, NoveltyHyper, NoveltySettings, check_observation
@@ -29,6 +30,8 @@ def make_model(settings: NoveltySettings, num_actions: int):
     if settings.algo == "ec":
         return EC(num_actions, capacity=settings.ec_memory, width=settings.ec_width, features=settings.ec_embed,
                   online=settings.ec_online, beta=settings.ec_beta)
+    if settings.algo == "e3b":
+        return E3B(num_actions, ridge=settings.e3b_ridge)
     return None
 
 
@@ -45,7 +48,7 @@ def make_novelty(settings: NoveltySettings, num_actions: int, obs_shape=None, ta
 
 
 __all__ = [
-    "EC", "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltyHyper", "NoveltySettings", "NoveltyState", "RND",
+    "E3B", "EC", "ICM", "METRICS", "MODELS", "Memory", "Novelty", "NoveltyHyper", "NoveltySettings", "NoveltyState", "RND",
     "RunningMeanStd", "SIM", "Timeline", "Windows", "build_timeline", "check_observation", "in_episode", "init_memory",
     "make_model", "make_novelty",
 ]

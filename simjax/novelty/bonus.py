@@ -7,7 +7,7 @@
 gradients; ``loss`` is lambda * L_F + (1 - lambda) * L_I of eq. (8), to be added to eta times
 the RL loss. ``state`` carries each environment's last frames and actions across rollouts and
 the running statistics of the two normalisations, and a stateful model's own state (EC's
-episodic memories, ``model``; empty for the others):
+episodic memories, E3B's inverse covariances: ``model``; empty for the others):
 
 * ``obs_norm`` (default on): the novelty networks see frames normalised per pixel by a running
   mean and std, clipped to [-5, 5], as in RND. A random target on raw pixels mostly encodes
@@ -48,7 +48,7 @@ class NoveltyState(NamedTuple):
     obs_stats: RunningMeanStd  # per pixel, (h, w, c)
     ret_stats: RunningMeanStd  # scalar, of the discounted error sums
     ret_running: jnp.ndarray  # (N,) discounted error sum per environment
-    model: Any = ()  # a stateful model's own per-environment state (EC's episodic memories), leading axis N
+    model: Any = ()  # a stateful model's own per-environment state (EC's memories, E3B's C^-1), leading axis N
 
 
 class Prepared(NamedTuple):
@@ -61,7 +61,7 @@ class Prepared(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class Novelty:
-    model: Any = None  # SIM, RND, ICM (``models``) or None for no bonus
+    model: Any = None  # SIM, RND, ICM (``models``), EC, E3B or None for no bonus
     bonus_scale: float = 0.0  # beta
     gamma: float = 0.99  # discount of the bonus normaliser's running return
     obs_norm: bool = True
@@ -118,14 +118,16 @@ class Novelty:
         """``(loss, (error, scored, metrics, model_state))``: the model on ``prepared``'s
         timeline, its frames normalised by ``prepared.obs_stats``; ``model_state`` is a stateful
         model's own state (``NoveltyState.model``, leading axis: environment). ``targets`` (T, N)
-        bool: the loss of those transitions alone (``models``); a stateful model (EC) takes none."""
+        bool: the loss of those transitions alone (``models``); of the stateful models E3B takes them,
+        EC none."""
         tl, x = prepared.timeline, self._frames(prepared.timeline, prepared.obs_stats)
+        extra = {} if targets is None else {"targets": targets}
         if getattr(self.model, "stateful", False):
-            if targets is not None:
+            if targets is not None and not getattr(self.model, "per_transition_loss", False):
                 raise ValueError(f"{type(self.model).__name__}'s loss is not one of transitions: it takes no targets")
-            error, scored, loss, metrics, model_state = self.model.apply_with_state(params, model_state, tl, x, hyper)
+            error, scored, loss, metrics, model_state = self.model.apply_with_state(params, model_state, tl, x, hyper,
+                                                                                    **extra)
         else:
-            extra = {} if targets is None else {"targets": targets}
             error, scored, loss, metrics = self.model.apply(params, tl, x, hyper, **extra)
         return loss, (error, scored, metrics, model_state)
 

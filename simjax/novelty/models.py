@@ -170,6 +170,28 @@ class SIM:
         return error, scored, loss, {"forward_loss": forward, "inverse_loss": inverse}
 
 
+def grey(frames: jnp.ndarray) -> jnp.ndarray:
+    """Frames (..., h, w, c) -> grey (..., h, w) in [0, 1]: the channels' mean."""
+    # added channel by channel: XLA:CPU ran jnp.mean over the 3-wide minor axis as a library
+    # reduction, 10% of an ICM update
+    x = to_unit(frames)
+    return sum((x[..., c] for c in range(1, x.shape[-1])), x[..., 0]) / x.shape[-1]
+
+
+def grey_stacks(tl: Timeline, stack: int) -> jnp.ndarray:
+    """(T+1, N, h, w, stack) stacks of the last ``stack`` grey frames ending at each of frames
+    M ... M+T (o_0 ... o_T), oldest first; frames before the episode's first are zero. Needs
+    ``tl.history >= stack - 1``."""
+    g = grey(tl.frames)  # (M+T+1, N, h, w)
+    m, t = tl.history, tl.num_targets
+    ends_seg = tl.segment[m:]
+    layers = []
+    for k in range(stack - 1, -1, -1):  # oldest first
+        same = tl.valid[m - k : m - k + t + 1] & (tl.segment[m - k : m - k + t + 1] == ends_seg)
+        layers.append(g[m - k : m - k + t + 1] * same[..., None, None])
+    return jnp.stack(layers, axis=-1)
+
+
 @dataclasses.dataclass(frozen=True)
 class ICM:
     """The intrinsic curiosity module (A.2) on 4 stacked 42x42 grey frames.
@@ -190,17 +212,7 @@ class ICM:
 
     def stacks(self, tl: Timeline) -> jnp.ndarray:
         """(T+1, N, 42, 42, stack) grey stacks ending at frames M ... M+T (o_0 ... o_T)."""
-        # the channels' mean, added channel by channel: XLA:CPU ran jnp.mean over the 3-wide
-        # minor axis as a library reduction, 10% of an ICM update
-        x = to_unit(tl.frames)
-        grey = sum((x[..., c] for c in range(1, x.shape[-1])), x[..., 0]) / x.shape[-1]  # (M+T+1, N, h, w)
-        m, t = tl.history, tl.num_targets
-        ends_seg = tl.segment[m:]
-        layers = []
-        for k in range(self.stack - 1, -1, -1):  # oldest first
-            same = tl.valid[m - k : m - k + t + 1] & (tl.segment[m - k : m - k + t + 1] == ends_seg)
-            layers.append(grey[m - k : m - k + t + 1] * same[..., None, None])
-        return jnp.stack(layers, axis=-1)
+        return grey_stacks(tl, self.stack)
 
     def init(self, key, tl: Timeline, x):
         return {"icm": ICMNet(self.num_actions).init(key, self.stacks(tl), tl.actions[tl.history :])}

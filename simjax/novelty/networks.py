@@ -176,6 +176,31 @@ class SIMNet(nn.Module):
         return h.reshape(T, N, self.hidden)
 
 
+def icm_features(stacks: jnp.ndarray) -> jnp.ndarray:
+    """ICM's encoder phi, called inside a compact module: 4 conv 32 (3x3, s2, ELU) on 4 stacked
+    grey frames, flattened (288 features from 42x42)."""
+    return _flatten(conv_stack(stacks, (32, 32, 32, 32), activation=nn.elu))
+
+
+class ICMEncoder(nn.Module):
+    """``icm_features`` as a module of its own (E3B's phi)."""
+
+    @nn.compact
+    def __call__(self, stacks: jnp.ndarray) -> jnp.ndarray:
+        return icm_features(stacks)
+
+
+class InverseHead(nn.Module):
+    """An inverse-dynamics head: fc 256 (ReLU) -> |A| logits on [phi_t, phi_{t+1}]."""
+
+    num_actions: int
+
+    @nn.compact
+    def __call__(self, phi_t: jnp.ndarray, phi_next: jnp.ndarray) -> jnp.ndarray:
+        g = nn.relu(Dense(256)(jnp.concatenate([phi_t, phi_next], axis=-1)))
+        return Dense(self.num_actions)(g)
+
+
 class ICMNet(nn.Module):
     """ICM (A.2): phi = 4 conv 32 (3x3, s2, ELU) on 4 stacked grey frames -> 288; forward fc 256
     -> fc 288 on [phi_t, one-hot a_t]; inverse fc 256 -> |A| on [phi_t, phi_{t+1}].
@@ -188,7 +213,7 @@ class ICMNet(nn.Module):
 
     @nn.compact
     def __call__(self, stacks, actions):
-        phi = _flatten(conv_stack(stacks, (32, 32, 32, 32), activation=nn.elu))
+        phi = icm_features(stacks)
         phi_t, phi_next = phi[:-1], phi[1:]
         a = jax.nn.one_hot(actions, self.num_actions)
         f = nn.relu(Dense(256, name="Forward_0")(jnp.concatenate([phi_t, a], axis=-1)))

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODELS = ("sim", "rnd", "icm", "ec")  # and "a2c": no model, no bonus
+MODELS = ("sim", "rnd", "icm", "ec", "e3b")  # and "a2c": no model, no bonus
 SIM_COMBINE = ("full", "itr", "concat")
 SIM_SEQUENCE = ("lstm", "ff")
 SIM_TARGET = ("rnd", "embed")
@@ -57,6 +57,7 @@ class NoveltySettings:
     ec_embed: int = 512  # EC: embedding size, and the comparator's fc
     ec_online: bool = False  # ECO: the reachability network also trains during the run
     ec_beta: float = 0.5  # EC: the bonus's offset, alpha * (beta - similarity)
+    e3b_ridge: float = 0.1  # E3B: lambda, each episode's C starts at lambda I
 
     def __post_init__(self):
         if self.algo != "a2c" and self.algo not in MODELS:
@@ -76,6 +77,8 @@ class NoveltySettings:
                 raise ValueError(f"{flag(name)} must be a positive integer, got {getattr(self, name)}")
         if not 0.0 <= self.ec_beta <= 1.0:
             raise ValueError(f"{flag('ec_beta')} must lie in [0, 1] (a similarity's range), got {self.ec_beta}")
+        if not (self.e3b_ridge > 0 and math.isfinite(self.e3b_ridge)):
+            raise ValueError(f"{flag('e3b_ridge')} (lambda) must be a finite number > 0, got {self.e3b_ridge}")
         if not (self.bonus_scale >= 0 and math.isfinite(self.bonus_scale)):
             raise ValueError(f"{flag('bonus_scale')} must be a finite number >= 0, got {self.bonus_scale}")
 
