@@ -5,8 +5,9 @@ export/), drawn from above, with how much of the map it covers and how close it 
 
 Writes RUN_DIR/trajectories.png (the first seed's episodes) and prints, per seed: success
 ratio, the mean over episodes of the number of 64x64-unit squares visited, and of the
-closest approach to the goal (units), and on MyWayHome where the episodes end: how many end
-nearest each of the map's 17 spawn spots (one per room or corridor). ``--random`` adds the
+closest approach to the goal (units), and on MyWayHome how many of the map's 17 spawn spots
+(one per room or corridor) an episode passes within 64 units of, and where the episodes end:
+how many end nearest each spot. ``--random`` adds the
 uniform random policy for comparison. Tasks with a fixed map only (the maze-* tasks and melon).
 """
 
@@ -59,6 +60,18 @@ def coverage(pos, alive, goal, square: float = 64.0):
     return np.asarray(squares), np.asarray(closest)
 
 
+def spots_passed(pos, alive, spots: dict, radius: float = 64.0) -> np.ndarray:
+    """(N,) how many of ``spots`` ({spot: (x, y)}) each env's first episode came within
+    ``radius`` units of (MyWayHome's 17 spawn spots: one per room or corridor)."""
+    at = np.asarray(list(spots.values()), np.float64)  # (S, 2)
+    counts = []
+    for n in range(pos.shape[1]):
+        p = first_episode(pos, alive, n)
+        near = np.linalg.norm(p[:, None, :] - at[None], axis=-1) <= radius  # (K, S)
+        counts.append(int(near.any(axis=0).sum()))
+    return np.asarray(counts)
+
+
 def ends_near(pos, alive, spots: dict) -> dict:
     """{spot: how many first episodes end nearest to it}, most first."""
     return nearest_spots(np.stack([first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])]), spots)
@@ -93,6 +106,8 @@ def main(argv=None) -> int:
         print(f"  {name}: success {np.mean(success):.2f}, squares visited {squares.mean():.1f} "
               f"(max {squares.max()}), closest to goal {closest.mean():.0f} units (min {closest.min():.0f})")
         if spots is not None:
+            passed = spots_passed(np.asarray(pos), np.asarray(alive), spots)
+            print(f"    spots passed within 64 units: {passed.mean():.1f} of {len(spots)} (max {passed.max()})")
             print("    episodes end nearest spot: " + ", ".join(
                 f"{s} ({c})" for s, c in ends_near(np.asarray(pos), np.asarray(alive), spots).items()))
         if drawn is None and params is not None:

@@ -80,6 +80,18 @@ def _experiment(name: str):
         sys.path.pop(0)
 
 
+def test_spots_passed_counts_the_spots_an_episode_came_near_before_it_ended():
+    """Two envs' first episodes on a line past three spots 100 units apart: env 0 passes the
+    first two (64 units is within, 65 not), env 1 ends after one step, by the first spot only."""
+    trajectories = _experiment("trajectories")
+    spots = {1: (0.0, 0.0), 2: (100.0, 64.0), 3: (200.0, 65.0)}
+    path = np.stack([np.arange(0.0, 250.0, 10.0), np.zeros(25)], axis=-1)  # (K, 2) along y = 0
+    pos = np.stack([path, path], axis=1)  # (K, 2 envs, 2)
+    alive = np.ones((25, 2), bool)
+    alive[1:, 1] = False  # env 1's episode ended at its first step: later positions are another's
+    np.testing.assert_array_equal(trajectories.spots_passed(pos, alive, spots), [2, 1])
+
+
 def test_an_export_is_split_into_files_under_the_limit_and_read_back_whole(tmp_path, monkeypatch):
     from simjax.runs import folder
 
