@@ -58,6 +58,24 @@ def test_matmul_and_its_gradient_products_are_within_the_bfloat16_bound():
         np.testing.assert_array_equal(jax.jit(products)(a, b)[0], jax.jit(lambda a, b: a @ b)(a, b))
 
 
+def test_products_of_operands_bfloat16_holds_exactly_are_summed_exactly_in_float32():
+    """Integers 1-15 are bfloat16 numbers and their products float32 ones, and every partial sum
+    here is an integer below 2^24: a float32 sum of them is exact, in any order. A sum kept in
+    bfloat16 (8 significant bits: integers above 256 lose their last bits), or a float32 sum
+    rounded to bfloat16 at the end, is not: these sums reach 10^4-10^5."""
+    M, K, N = 400, 600, 300  # each of the three products contracts one of them
+    a = jax.random.randint(jax.random.PRNGKey(0), (M, K), 1, 16).astype(jnp.float32)
+    b = jax.random.randint(jax.random.PRNGKey(1), (K, N), 1, 16).astype(jnp.float32)
+    g = jax.random.randint(jax.random.PRNGKey(2), (M, N), 1, 16).astype(jnp.float32)
+    with matmul_operands(jnp.bfloat16):
+        out, vjp = jax.jit(lambda a, b: jax.vjp(matmul, a, b))(a, b)
+        da, db = jax.jit(vjp)(g)
+    a64, b64, g64 = (np.asarray(x, np.int64) for x in (a, b, g))
+    for got, want in ((out, a64 @ b64), (da, g64 @ b64.T), (db, a64.T @ g64)):
+        assert want.max() > 2**13 and want.max() < 2**24
+        np.testing.assert_array_equal(np.asarray(got, np.float64), want)
+
+
 def test_the_operand_setting_is_scoped_and_checked():
     assert operand_dtype() == jnp.float32
     with runtime.matmul_precision("bfloat16"):
@@ -142,10 +160,13 @@ def test_each_network_in_bfloat16_agrees_with_float32_and_keeps_float32_at_its_b
     build, depth = NETWORKS[name]
     params, apply = build(batch)
     chex.assert_tree_all_finite(params)
-    f32 = jax.jit(apply)(params)
+    def grad_of(p):  # of the outputs' sum, as a loss that weighs every output entry alike
+        return jax.grad(lambda p: sum(jnp.sum(x) for x in jax.tree.leaves(apply(p))))(p)
+
+    f32, f32_grads = jax.jit(apply)(params), jax.jit(grad_of)(params)
     with runtime.matmul_precision("bfloat16"):
         bf16 = jax.jit(apply)(params)
-        grads = jax.jit(jax.grad(lambda p: sum(jnp.sum(x) for x in jax.tree.leaves(apply(p)))))(params)
+        grads = jax.jit(grad_of)(params)
     chex.assert_trees_all_equal_shapes_and_dtypes(bf16, f32)
     chex.assert_type(jax.tree.leaves(bf16), jnp.float32)
     chex.assert_trees_all_equal_shapes_and_dtypes(grads, params)  # params and their gradients: float32
@@ -154,6 +175,12 @@ def test_each_network_in_bfloat16_agrees_with_float32_and_keeps_float32_at_its_b
         x16, x32 = np.asarray(x16, np.float64), np.asarray(x32, np.float64)
         rel = np.linalg.norm(x16 - x32) / np.linalg.norm(x32)
         assert 0 < rel <= depth * 2.0 ** -7, (name, rel, depth * 2.0 ** -7)
+    # a parameter's gradient runs the forward's D products to the output and back through at most
+    # D transposed ones: 2 D chained products, so 2 D 2^-7 normwise over all the parameters (one
+    # small parameter alone can be off by more where a ReLU flips under the rounding)
+    g16, g32 = (np.concatenate([np.asarray(x, np.float64).ravel() for x in jax.tree.leaves(g)]) for g in (grads, f32_grads))
+    rel = np.linalg.norm(g16 - g32) / np.linalg.norm(g32)
+    assert 0 < rel <= 2 * depth * 2.0 ** -7, (name, rel, 2 * depth * 2.0 ** -7)
 
 
 def test_a_jitted_function_is_traced_again_when_the_operands_change():

@@ -44,14 +44,15 @@ def test_a_normal_run_prints_no_import_failures():
         assert "Failed to import" not in out.stdout + out.stderr, command
 
 
-def _import_graph(package: str = "simjax.envs") -> dict[str, set[str]]:
+def _import_graph(package: str = "simjax.envs", root=None) -> dict[str, set[str]]:
     """{module: the ``package`` modules it imports} for every module under it, read from the
-    source, imports inside functions included (``from simjax.envs import raycaster`` is an
-    import of simjax.envs.raycaster)."""
+    source under ``root`` (default: the repository), imports inside functions included (``from
+    simjax.envs import raycaster`` is an import of simjax.envs.raycaster) and relative ones
+    (``from .a3c import x`` in simjax.agents.trainer is one of simjax.agents.a3c)."""
     import ast
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
     files = sorted((root / Path(*package.split("."))).rglob("*.py"))
 
     def name_of(path: Path) -> str:
@@ -62,13 +63,20 @@ def _import_graph(package: str = "simjax.envs") -> dict[str, set[str]]:
     graph = {}
     for name, path in modules.items():
         targets = set()
+        # the package a relative import counts from: the module's own for an __init__, else its parent's
+        here = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith(package):
-                for alias in node.names:
-                    full = f"{node.module}.{alias.name}"
-                    targets.add(full if full in modules else node.module)
+            if isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    anchor = here[: len(here) - (node.level - 1)]
+                    base = ".".join(anchor + ([base] if base else []))
+                if base == package or base.startswith(package + "."):
+                    for alias in node.names:
+                        full = f"{base}.{alias.name}"
+                        targets.add(full if full in modules else base)
             elif isinstance(node, ast.Import):
-                targets |= {a.name for a in node.names if a.name.startswith(package)}
+                targets |= {a.name for a in node.names if a.name == package or a.name.startswith(package + ".")}
         graph[name] = targets - {name}
     return graph
 
@@ -113,6 +121,26 @@ def test_the_agents_import_only_down_their_layers():
     upward = [(m, t) for m, targets in graph.items() for t in targets if layer[t] >= layer[m]]
     assert upward == []
     _assert_no_cycle(graph)
+
+
+def test_the_import_graph_finds_the_edges_absolute_and_relative(tmp_path):
+    """The parser's edges: the known ones in simjax.agents, and in a package written here every
+    form of import, relative ones included (a parser that found none would pass every layer test)."""
+    agents = _import_graph("simjax.agents")
+    assert {"simjax.agents.a2c", "simjax.agents.config"} <= agents["simjax.agents.a3c"]
+    assert "simjax.agents.config" in agents["simjax.agents.a2c"]
+    assert {"simjax.agents.a2c", "simjax.agents.a3c"} <= agents["simjax.agents.trainer"]
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("from .a import x\nfrom . import b\n")
+    (pkg / "a.py").write_text("import pkg.b\n\ndef f():\n    from pkg.sub import c\n")
+    (pkg / "b.py").write_text("import os\nfrom pkg import sub\n")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "sub" / "c.py").write_text("from ..a import f\nfrom .. import b\nfrom . import d\n")
+    (pkg / "sub" / "d.py").write_text("from ...outside import z\n")
+    assert _import_graph("pkg", root=tmp_path) == {
+        "pkg": {"pkg.a", "pkg.b"}, "pkg.a": {"pkg.b", "pkg.sub.c"}, "pkg.b": {"pkg.sub"},
+        "pkg.sub": set(), "pkg.sub.c": {"pkg.a", "pkg.b", "pkg.sub.d"}, "pkg.sub.d": set()}
 
 
 def test_the_import_cycle_check_finds_one():
