@@ -1,5 +1,5 @@
 """Does ``--precision bfloat16`` change what a run learns? Two run folders that differ only in
-their precision (same task, method, seeds and settings), side by side: issue 51's learning check.
+their precision (same task, method, seeds and settings), side by side: the precision's learning check.
 
     python experiments/precision_check.py RUN_A RUN_B [--from STEPS]
 

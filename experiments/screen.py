@@ -1,4 +1,4 @@
-"""Issue 53's screen: each arm against the control on the paper's very sparse start.
+"""The screen: each arm against the control on the paper's very sparse start.
 
     python experiments/screen.py ARM [ARM ...] [--control FOLDER] [--budget 2000000]
 
@@ -80,7 +80,7 @@ def report(point: Point, control: Point) -> bool:
     print(f"== {label}: {point.config['algo']} on {point.config['env']}, {len(point.seeds)} seeds x {last:,} agent steps")
     ours, theirs = (c.get("precision", "highest") for c in (point.config, control.config))
     if ours != theirs:
-        print(f"  precision {ours}, the control's {theirs} (issue 51's learning check found them within the seeds' "
+        print(f"  precision {ours}, the control's {theirs} (the precision's learning check found them within the seeds' "
               "spread on this start: docs/usage.md#precision)")
     finals, reached = {}, {}
     for seed, series in point.seeds.items():

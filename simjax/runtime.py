@@ -50,7 +50,7 @@ def cpu_has_bfloat16_dots(cpuinfo: str = "/proc/cpuinfo") -> bool:
 def command_default_precision() -> str:
     """``--precision`` where the training and sweep commands are given none: bfloat16 on a CPU
     that multiplies bfloat16 in hardware (SIM's training command ran 1.35x as fast on AMX, 1.30x
-    on AVX-512 BF16, and issue 51's learning check found no change in what SIM learns:
+    on AVX-512 BF16, and the learning check (experiments/results/precision-check) found no change in what SIM learns:
     docs/usage.md#precision); highest (float32) elsewhere: a CPU without them converts bfloat16
     to float32 to multiply, and on a GPU bfloat16 has not been checked. ``TrainConfig``'s own
     default stays highest."""

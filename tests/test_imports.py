@@ -112,7 +112,7 @@ def test_the_envs_import_only_down_their_layers():
 
 def test_the_agents_import_only_down_their_layers():
     """The config < A2C (the rollout, the loss, its rule, the loop) < A3C's rule (built on A2C's
-    loss) < the trainer, which picks the rule (issue 52: a2c.py imported a3c.py inside
+    loss) < the trainer, which picks the rule (a2c.py once imported a3c.py inside
     make_trainer, and a3c.py imports a2c.py) < the package."""
     graph = _import_graph("simjax.agents")
     layer = {"simjax.agents.config": 0, "simjax.agents.a2c": 1, "simjax.agents.a3c": 2, "simjax.agents.trainer": 3,

@@ -11,7 +11,7 @@ A2C did not move off the random policy's success on maze-dense in 1M steps, at 1
 ``learner="a3c"`` (``simjax.agents.a3c``) is A3C's update rule as the ICM code runs it (each
 actor's steps cut at episode ends into pieces, one step per piece, in sequence, of one Adam per
 parameter group that all actors share: the ICM code's Adam slots live on its parameter server
-and its chief alone initialises them, src/worker.py:41-43, 78-85; ``a3c`` runs before issue 52
+and its chief alone initialises them, src/worker.py:41-43, 78-85; ``a3c`` runs before that
 gave each actor an Adam of its own), and its defaults are that code's: learning rate 1e-4,
 gradient clip 40, value weight 0.25 on the mean squared error (its 0.5 times half the squared
 error), rewards clipped to [-1, 1] where the task's rewards lie there anyway, no bootstrap at
@@ -146,7 +146,7 @@ class TrainConfig:
     # renderer's). The dataclass's default is float32 so that a config.json without the field,
     # a test or a script gets the numbers runs had before the setting; the commands choose
     # bfloat16 on a CPU that multiplies bfloat16 in hardware (runtime.command_default_precision),
-    # where issue 51's learning check found it learns what float32 learns
+    # where the precision's learning check (experiments/results/precision-check) found it learns what float32 learns
     precision: str = dataclasses.field(default="highest", metadata={
         "choices": ("highest", "high", "default", "bfloat16"),
         "default_shown": "bfloat16 on a CPU with AMX or AVX-512 BF16, highest elsewhere",
