@@ -613,7 +613,7 @@ def report_all(args) -> int:
     return 0
 
 
-LOOP_ALGOS = ("sim", "rnd", "icm", "ec", "a2c")
+LOOP_ALGOS = ("sim", "rnd", "icm", "ec", "e3b", "a2c")
 
 
 def loop_lines(loops: list[dict], flops: dict, peak: float) -> list[str]:

@@ -5,12 +5,14 @@ came near each spot.
     python experiments/novelty_map.py RUN_DIR [--walks 16] [--steps 60]
 
 For a run on a MyWayHome task (``simjax.envs.is_mywayhome``: any look) with a novelty model (sim,
-rnd, icm, ec). From every spawn spot, ``--walks`` uniform random walks of ``--steps`` steps
+rnd, icm, ec, e3b). From every spawn spot, ``--walks`` uniform random walks of ``--steps`` steps
 (random headings) are scored by the run's novelty model (its checkpoint's, or its export's)
 with its own running observation statistics; only transitions whose window lies wholly inside
 the walk count. EC's error is its novelty beta - C(M, e) (the bonus before alpha), each walk
 with an episodic memory of its own that starts with the walk's first frame, as an episode's
-does. The policy's side: 16 episodes per seed from the run's own task, and the fraction of them
+does; E3B's is its elliptical bonus b, each walk with a covariance of its own that starts with
+the walk's first frame (so a spot scores how varied a walk from it looks, not how often the
+policy has been there). The policy's side: 16 episodes per seed from the run's own task, and the fraction of them
 that came within 96 units of each spot.
 
 Prints per spot: distance from the run's start (its task's spawn spot; spot 10, the map's own
@@ -113,7 +115,7 @@ def main(argv=None) -> int:
     def score(params, obs_stats, frames, actions, segment, valid):  # the walks as arguments, not constants XLA would fold
         tl = Timeline(frames, actions, segment, valid, history=model.history)
         x = normalize_frames(tl.frames, obs_stats if config.obs_norm else None)
-        if getattr(model, "stateful", False):  # EC: each walk its own episodic memory, holding the walk's first frame
+        if getattr(model, "stateful", False):  # EC, E3B: each walk its own episodic state, holding the walk's first frame
             state = model.init_state(params, tl.frames[tl.history], jax.random.PRNGKey(7))
             error, scored, _, _, _ = model.apply_with_state(params, state, tl, x)
         else:
