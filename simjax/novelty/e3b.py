@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 
 from simjax.novelty.base import Timeline, in_episode, masked_mean
-from simjax.novelty.models import grey_stacks
+from simjax.novelty.models import grey, grey_stacks
 from simjax.novelty.networks import ICMEncoder, InverseHead
 
 RIDGE = 0.1  # lambda: E3B's ``--ridge`` default, and its ViZDoom sweep's value
@@ -100,21 +100,14 @@ class E3B:
 
     def init(self, key, tl: Timeline, x=None):
         k_e, k_i = jax.random.split(key)
-        stacks = grey_stacks(tl, self.stack)
-        phi = ICMEncoder().init(k_e, stacks)
-        feats = ICMEncoder().apply(phi, stacks)
-        return {"encoder": phi, "inverse": InverseHead(self.num_actions).init(k_i, feats[:-1], feats[1:])}
+        feats, encoder = ICMEncoder().init_with_output(k_e, grey_stacks(tl, self.stack))
+        return {"encoder": encoder, "inverse": InverseHead(self.num_actions).init(k_i, feats[:-1], feats[1:])}
 
     def first_stacks(self, obs):
-        """The stacks of first frames ``obs`` (N, h, w, c): zeros, then the frame's grey."""
-        n = obs.shape[0]
-        zeros = jnp.zeros((n,), bool)
-        tl = Timeline(frames=jnp.concatenate([jnp.zeros((self.history,) + obs.shape, obs.dtype), obs[None]]),
-                      actions=jnp.zeros((self.history, n), jnp.int32),
-                      segment=jnp.zeros((self.history + 1, n), jnp.int32),
-                      valid=jnp.concatenate([jnp.broadcast_to(zeros, (self.history, n)), ~zeros[None]]),
-                      history=self.history)
-        return grey_stacks(tl, self.stack)[0]  # (N, h, w, stack)
+        """The stacks of first frames ``obs`` (N, h, w, c): zeros, then the frame's grey (what
+        ``grey_stacks`` gives an episode's first frame)."""
+        g = grey(obs)
+        return jnp.stack([jnp.zeros_like(g)] * self.history + [g], axis=-1)  # (N, h, w, stack)
 
     def init_state(self, params, obs, key=None) -> E3BState:
         """Every environment's C^-1 with its first frame ``obs`` (N, h, w, c) folded in."""
