@@ -1,5 +1,5 @@
-"""Where a MyWayHome env step's time goes: Doom's motion, the renderer, and the renderer's
-XLA:CPU fusions from the JAX profiler's trace.
+"""Where a maze env step's time goes: the motion (Doom's, or DeepMind Lab's for the DMLab
+worlds), the renderer, and the renderer's XLA:CPU fusions from the JAX profiler's trace.
 
     python experiments/profile_env.py [--task maze-very-sparse] [--envs 1024] [--pause PID]
 
@@ -30,12 +30,11 @@ from bench import time_call  # noqa: E402
 from profile_update import trace_thunks  # noqa: E402
 
 from simjax.envs import TASK_NAMES, make  # noqa: E402
-from simjax.envs.doom import motion  # noqa: E402
 
 
 def programs(env, num_envs: int, steps: int):
     """(whole step, motion alone, render alone), each jitted over ``steps`` agent steps."""
-    layout, params = env.layout, env.motion_params
+    layout, params, model = env.layout, env.motion_params, env.motion_model
 
     def actions(key):
         return jax.random.randint(key, (num_envs,), 0, env.action_size)
@@ -48,7 +47,7 @@ def programs(env, num_envs: int, steps: int):
 
     def four_tics(pose, action):
         for _ in range(params.tics_per_step):
-            pose = motion.tic(pose, action, layout.boxes, params, layout.line_dir, layout.block_origin)
+            pose = model.tic(pose, action, layout.boxes, params, layout.line_dir, layout.block_origin)
         return pose
 
     @jax.jit
@@ -62,11 +61,19 @@ def programs(env, num_envs: int, steps: int):
         pose = state.pipeline_state.pose
 
         def body(total, k):
-            turned = pose._replace(angle=(pose.angle + jax.random.randint(k, (num_envs,), 0, 4096)) % motion.ANGLE_UNITS)
+            turned = turn(pose, jax.random.randint(k, (num_envs,), 0, 4096))
             return total + jax.vmap(env.render)(turned).astype(jnp.float32).sum(), None
         return jax.lax.scan(body, jnp.float32(0.0), jax.random.split(key, steps))[0]
 
     return {"env.step (motion + render)": whole, "motion (4 tics)": moving, "render (one frame)": drawing}
+
+
+def turn(pose, units):
+    """``pose`` turned by ``units`` of a 65536-unit turn: Doom's ``angle``, or the game's part
+    of DMLab's yaw (``delta_yaw``)."""
+    if hasattr(pose, "angle"):
+        return pose._replace(angle=(pose.angle + units) % 65536)
+    return pose._replace(delta_yaw=(pose.delta_yaw + units) % 65536)
 
 
 def gather_fusions(hlo: str) -> set[str]:

@@ -231,6 +231,16 @@ def test_a_folder_written_before_the_icm_starts_is_tabled_by_the_start_it_traine
     assert "without its 0-3.6 degree jitter" in table1
 
 
+def test_a_melon_folder_written_before_dmlabs_motion_reads_as_the_doom_motion_world(tmp_path):
+    rows = [{"env_steps": 25_000 * (i + 1), "seed": 0, "success_ratio": 0.5, "episodes": 100} for i in range(4)]
+    for name, tasks_as_of, want in (("none", None, "melon-doom-motion"), ("dec4", "2026-12-04", "melon-doom-motion"),
+                                    ("today", TASKS_AS_OF, "melon")):
+        folder = write_folder(tmp_path / name, SIM | {"env": "melon"}, rows, tasks_as_of=tasks_as_of)
+        (point,) = protocol.read_points(folder)
+        assert point.config["env"] == want and point.record["tasks_as_of"] == TASKS_AS_OF
+        assert report.input_commands(folder)[0].startswith(f"python -m simjax.train --env {want} --algo sim")
+
+
 def test_an_empty_ec_cell_asks_for_the_pretraining_passes_the_tables_ec_runs_used():
     run = lambda c: protocol.Point(Path("r"), {}, SIM | {"total_steps": 4_000_000, "num_seeds": 3} | c, {}, {})
     ec3 = run({"algo": "ec", "total_steps": 4_600_000, "ec_pretrain_epochs": 3})

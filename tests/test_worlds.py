@@ -14,16 +14,15 @@ import pytest
 from helpers import walk
 
 from simjax.envs import make, raycaster
-from simjax.envs.dmlab import dmlab_maze, melon
+from simjax.envs.dmlab import dmlab_maze, melon, pmove
 from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
 from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator, random_spanning_tree
-from simjax.envs.doom import motion
 
 
 def _placed(env, x, y, degrees, key=0):
-    """A fresh state of ``env`` with the agent moved to (x, y) facing ``degrees``."""
+    """A fresh state of ``env`` with the agent moved to (x, y) facing ``degrees``, standing still."""
     state = jax.jit(env.reset)(jax.random.PRNGKey(key))
-    pose = motion.Pose.at(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(degrees)))
+    pose = env.motion_model.Pose.at(jnp.array([x, y], jnp.float32), jnp.float32(math.radians(degrees)))
     return state.replace(pipeline_state=state.pipeline_state._replace(pose=pose))
 
 
@@ -38,13 +37,24 @@ YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
 
 
 # ---- melon ---------------------------------------------------------------------------------
-L, R, F = motion.TURN_LEFT, motion.TURN_RIGHT, motion.FORWARD
+L, R, F = pmove.TURN_LEFT, pmove.TURN_RIGHT, pmove.FORWARD
 
 
 def _route(*legs):
-    """Actions: (action, count) legs one after the other. Seven turn steps from rest turn
-    89.6 degrees; the small miss keeps the agent pressed to the wall it slides along."""
+    """Actions: (action, count) legs one after the other, for DMLab's motion (``pmove``).
+    Eleven turn steps turn 92.9 degrees (8.4485 a step); the small overshoot keeps the agent
+    pressed to the block's wall it slides along. Forward from rest covers 7.2, 16.1, 20.4
+    units in its first steps, then 20.48 a step, so the 437 units to the end of the south
+    side (from x = +-60) take 23 steps, the 977 up a side 49, the 447 along the north side to
+    the cliff 23, and the 372 along the platform until the melon is within reach (x >= -90,
+    ``BG_PlayerTouchesItem``'s 50 units) 20; each leg below has 2-3 steps to spare."""
     return jnp.asarray([a for a, n in legs for _ in range(n)], jnp.int32)
+
+
+# east along the south side, north up the east side, west along the north side to the cliff
+APPLE_ROUTE = _route((F, 25), (L, 11), (F, 52), (L, 11), (F, 25))
+# west through the lemon, north up the stair corridor, east along the platform to the melon
+LEMON_ROUTE = _route((F, 25), (R, 11), (F, 52), (R, 11), (F, 22))
 
 
 def test_melon_holds_the_fruit_of_dmlab_stairway_to_melon_map():
@@ -65,22 +75,22 @@ def test_melon_holds_the_fruit_of_dmlab_stairway_to_melon_map():
 def test_melon_apple_route_pays_fourteen_and_ends_at_the_cliff():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    # east along the south side, north up the east side, west along the north side
-    states = run(_placed(env, 60.0, -480.0, 0.0), _route((F, 35), (L, 7), (F, 60), (L, 7), (F, 45)))
+    states = run(_placed(env, 60.0, -480.0, 0.0), APPLE_ROUTE)
     reward = np.asarray(states.reward)
     assert reward.sum() == 14 and set(reward[reward != 0]) == {1.0}
     assert np.asarray(states.done).sum() == 0  # the dead end ends nothing
     collected = np.asarray(states.pipeline_state.collected)[-1]
     assert collected[:14].all() and not collected[14:].any()  # neither the lemon nor the melon
     x, y = np.asarray(states.pipeline_state.pose.pos[-1])
-    assert x == pytest.approx(16.0, abs=1.0) and y > 448  # stopped by the cliff under the melon
+    # stopped by the cliff under the melon: the box's half-size and Quake's 1/8 unit short of it
+    assert x == pytest.approx(melon.CLIFF_X + env.motion_params.radius + env.motion_params.clip_epsilon, abs=0.01)
+    assert y > 448
 
 
 def test_melon_lemon_route_costs_one_and_the_melon_ends_the_episode():
     env = make("melon")
     run = jax.jit(lambda s, a: walk(env, s, a))
-    # west through the lemon, north up the stair corridor, east along the platform
-    states = run(_placed(env, -60.0, -480.0, 180.0), _route((F, 30), (R, 7), (F, 60), (R, 7), (F, 40)))
+    states = run(_placed(env, -60.0, -480.0, 180.0), LEMON_ROUTE)
     done, reward = np.asarray(states.done), np.asarray(states.reward)
     t = int(np.argmax(done))
     assert done[t] == 1 and reward[t] == 20.0 and reward[:t].sum() == -1.0
@@ -106,7 +116,7 @@ def test_melon_dmlab_rules_restart_the_level_at_the_melon_and_run_900_steps():
     run = jax.jit(lambda s, a: walk(env, s, a))
     pad = lambda route: jnp.concatenate([route, jnp.full((900 - route.shape[0],), L, jnp.int32)])
     # the lemon route to the melon, then turning on the spot where the level put the agent back
-    states = run(_placed(env, -60.0, -480.0, 180.0), pad(_route((F, 30), (R, 7), (F, 60), (R, 7), (F, 40))))
+    states = run(_placed(env, -60.0, -480.0, 180.0), pad(LEMON_ROUTE))
     done, reward = np.asarray(states.done), np.asarray(states.reward)
     t = int(np.argmax(reward == 20.0))
     assert reward[t] == 20.0 and reward[:t].sum() == -1.0 and reward[t + 1:].sum() == 0
@@ -115,15 +125,15 @@ def test_melon_dmlab_rules_restart_the_level_at_the_melon_and_run_900_steps():
     assert np.flatnonzero(done).tolist() == [899]  # the melon ended nothing; the clock did
     assert states.metrics["episode_success"][899] == 1 and states.metrics["episode_return"][899] == 19.0
     # the apple route's 14 points without the melon are no success
-    states = run(_placed(env, 60.0, -480.0, 0.0), pad(_route((F, 35), (L, 7), (F, 60), (L, 7), (F, 45))))
+    states = run(_placed(env, 60.0, -480.0, 0.0), pad(APPLE_ROUTE))
     assert np.flatnonzero(np.asarray(states.done)).tolist() == [899]
     assert states.metrics["episode_return"][899] == 14.0 and states.metrics["episode_success"][899] == 0
 
 
 def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     env = make("melon")
-    east = motion.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
-    west = motion.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
+    east = env.motion_model.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
+    west = env.motion_model.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
     render = jax.jit(env.render)
     apples, lemon = np.asarray(render(east)), np.asarray(render(west))
     assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
@@ -297,17 +307,17 @@ def test_explore_goals_pickup_respawns_the_agent_and_keeps_the_goal():
     goal = np.asarray(ms.world.items.pos)
     step = jax.jit(env.step)
     # the agent stepped onto the goal
-    onto = state.replace(pipeline_state=ms._replace(pose=motion.Pose.at(ms.world.items.pos[0], ms.pose.heading)))
+    onto = state.replace(pipeline_state=ms._replace(pose=env.motion_model.Pose.at(ms.world.items.pos[0], ms.pose.heading)))
     after = step(onto, jnp.int32(0))
     assert float(after.reward) == 10.0 and float(after.done) == 0.0 and float(after.pipeline_state.ep_return) == 10.0
     new = after.pipeline_state
     np.testing.assert_array_equal(np.asarray(new.world.items.pos), goal)  # the goal stays
     np.testing.assert_array_equal(np.asarray(new.world.walls.v_lo), np.asarray(ms.world.walls.v_lo))  # same maze
     assert _respawned_at_spawn_point(new.world, new.pose.pos)  # the agent moved to a spawn point
-    assert np.abs(np.asarray(new.pose.pos) - goal[0]).max() > 36  # ... off the goal
+    assert not bool(env.touches(new.world.items.pos, new.pose.pos)[0])  # ... off the goal
     assert not np.asarray(new.collected).any()  # the goal is back, to be found again
     again = step(after.replace(pipeline_state=new._replace(
-        pose=motion.Pose.at(new.world.items.pos[0], new.pose.heading))), jnp.int32(0))
+        pose=env.motion_model.Pose.at(new.world.items.pos[0], new.pose.heading))), jnp.int32(0))
     assert float(again.reward) == 10.0 and float(again.pipeline_state.ep_return) == 20.0
 
 
@@ -457,7 +467,7 @@ def test_explore_goals_paper_agents_never_cross_a_standing_wall():
                    & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
         assert not overlap.any()
     travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
-    assert travelled > 8 * 300 * 1.5  # (agents pinned in corners turn out slowly: 7-14 deg a step)
+    assert travelled > 8 * 300 * 1.5  # (agents pinned in corners turn out slowly: 8.4 deg a step)
 
 
 @pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3), ("explore-goals-paper", 3)])

@@ -24,7 +24,8 @@ took its three settings from:
 - ``maze-tiny``: one 320x128 room with the goal 160 units from a fixed spot, random heading,
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
 
-The paper's other two worlds (``simjax.envs.dmlab.melon``, ``simjax.envs.dmlab.explore_goals``):
+The paper's other two worlds (``simjax.envs.dmlab.melon``, ``simjax.envs.dmlab.explore_goals``),
+moving and picking up items as DeepMind Lab does (``simjax.envs.dmlab.pmove``):
 - ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
   melon (+20, success); 525 steps, 3 actions (the paper's rules);
 - ``melon-dmlab``: the same map under DMLab's level rules: the melon puts the agent back at the
@@ -34,7 +35,12 @@ The paper's other two worlds (``simjax.envs.dmlab.melon``, ``simjax.envs.dmlab.e
   the goal fixed for the episode in a room, +10 per goal reached, then the agent alone
   respawns at a room's spawn point; 1350 steps, 3 actions;
 - ``explore-goals-paper``: the paper's wording of it: a 9x9 maze without rooms, a new start and
-  a new goal after each pickup; 1350 steps, 3 actions.
+  a new goal after each pickup; 1350 steps, 3 actions;
+- ``melon-doom-motion``, ``melon-dmlab-doom-motion``, ``explore-goals-doom-motion`` and
+  ``explore-goals-paper-doom-motion``: the same worlds moving and touching items with Doom's
+  motion (``simjax.envs.doom.motion``, MyWayHome's), as they did before 2026-12-07
+  (``simjax.config_history``: run folders written before then are read under these names),
+  kept so those runs rebuild.
 
 Any gymnax environment: ``gymnax:NAME`` (``simjax.envs.gymnax_adapter``), e.g.
 ``gymnax:CartPole-v1`` or ``gymnax:Breakout-MinAtar``.
@@ -51,7 +57,7 @@ from collections.abc import Callable
 import numpy as np
 
 from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv
-from simjax.envs.dmlab.melon import MELON_TASK, MelonLevelEnv, melon_layout
+from simjax.envs.dmlab.melon import MelonLevelEnv, melon_env, melon_layout
 from simjax.envs.doom import icm_scenarios, mywayhome_map
 from simjax.envs.episodes import episode_metrics, given_actions, rollout, starts_episode, uniform_policy
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item, random_walks
@@ -163,10 +169,14 @@ def is_mywayhome(name: str) -> bool:
 _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
     **{name: _mywayhome_task(name) for name in MYWAYHOME_TASKS},
     "maze-tiny": lambda: MazeEnv(tiny_layout(), MazeTask("maze-tiny", random_heading=True, max_steps=50)),
-    "melon": lambda: MazeEnv(melon_layout(), MELON_TASK),
+    "melon": melon_env,
     "melon-dmlab": MelonLevelEnv,
     "explore-goals": ExploreGoalsEnv,
     "explore-goals-paper": ExploreGoalsPaperEnv,
+    "melon-doom-motion": lambda: melon_env(motion="doom"),
+    "melon-dmlab-doom-motion": lambda: MelonLevelEnv(motion="doom"),
+    "explore-goals-doom-motion": lambda: ExploreGoalsEnv(motion="doom"),
+    "explore-goals-paper-doom-motion": lambda: ExploreGoalsPaperEnv(motion="doom"),
 }
 
 TASK_NAMES = tuple(_REGISTRY)
@@ -187,7 +197,8 @@ def check_name(name: str) -> None:
 
 
 # tasks whose episodes always run to their step limit (no goal or death ends one early)
-FIXED_LENGTH_TASKS = frozenset({"melon-dmlab", "explore-goals", "explore-goals-paper"})
+FIXED_LENGTH_TASKS = frozenset({"melon-dmlab", "explore-goals", "explore-goals-paper", "melon-dmlab-doom-motion",
+                                "explore-goals-doom-motion", "explore-goals-paper-doom-motion"})
 
 
 def episodes_end_early(name: str) -> bool:

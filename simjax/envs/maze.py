@@ -1,12 +1,17 @@
 """First-person maze navigation as a brax ``Env``: MyWayHome tasks (paper section 3.1, B.1).
 
 An agent step repeats one of 4 actions {turn left, turn right, forward, no-op} (or the first 3,
-``MazeTask.num_actions``) for 4 tics of Doom's motion (``simjax.envs.doom.motion``) and renders
-one 42x42 RGB frame: as ViZDoom draws it (``doom_render``) where the env has a ``DoomLook``,
-else with the invented looks of ``raycaster``. Items give their reward on the first touch in an episode
-and disappear; touching one that ``ends`` (the goal) ends the episode as a success
-(termination). Otherwise the episode is cut after ``max_steps`` agent steps (truncation,
-``info['truncation'] == 1``, so a learner bootstraps there and not at a termination).
+``MazeTask.num_actions``) for 4 tics of the env's motion and renders one 42x42 RGB frame. The
+motion params pick the motion: Doom's (``simjax.envs.doom.motion``, ``MotionParams``, the
+default) or the module their ``model`` names (DeepMind Lab's ``simjax.envs.dmlab.pmove`` for its
+``DmlabMotionParams``: 4 engine frames), and with it the pickup rule (Doom's
+``MazeTask.touch_distance`` per axis, or the module's ``touches``: Quake's
+``BG_PlayerTouchesItem`` box). The frame is drawn as ViZDoom draws it (``doom_render``) where the
+env has a ``DoomLook``, else with the invented looks of ``raycaster``. Items give their reward
+on the first touch in an episode and disappear; touching one that ``ends`` (the goal) ends the
+episode as a success (termination). Otherwise the episode is cut after ``max_steps`` agent steps
+(truncation, ``info['truncation'] == 1``, so a learner bootstraps there and not at a
+termination).
 
 Auto-reset happens inside ``step`` (unlike brax's ``AutoResetWrapper``, which replays the first
 state it saw): a finished episode's next start is drawn from the state's own key, and the frame
@@ -84,7 +89,7 @@ class Layout(NamedTuple):
 class MazeState(NamedTuple):
     """Everything the simulator carries from step to step (brax's ``pipeline_state``)."""
 
-    pose: motion.Pose
+    pose: motion.Pose  # or the Pose of the env's motion model (``MazeEnv.motion_model``)
     steps: jnp.ndarray  # () int32, agent steps taken in this episode
     ep_return: jnp.ndarray  # () float32, extrinsic return so far in this episode
     key: jnp.ndarray  # PRNG key that draws the next episode's start
@@ -103,7 +108,7 @@ class MazeTask:
     # these units, inclusive (65536 a turn), as an ACS ENTER script's random(lo, hi) draws it
     angle_range: tuple[int, int] | None = None
     max_steps: int = 525  # agent steps (2100 tics / 4)
-    touch_distance: float = 36.0  # Doom pickup: player half-size 16 + item radius 20, per axis
+    touch_distance: float = 36.0  # Doom pickup: player half-size 16 + item radius 20, per axis (Doom motion only)
     num_actions: int = 4  # the first of (turn left, turn right, forward, no-op)
 
 
@@ -119,13 +124,16 @@ class MazeEnv(Env):
         layout: Layout,
         task: MazeTask,
         camera: raycaster.Camera | doom_render.DoomCamera | None = None,
-        motion_params: motion.MotionParams = motion.MotionParams(),
+        motion_params=motion.MotionParams(),
         auto_reset: bool = True,
         look: doom_render.DoomLook | None = None,
         light: doom_render.DoomLight = doom_render.DoomLight(),
     ):
         """``look`` None draws the layout with the invented looks of ``raycaster``; a
-        ``DoomLook`` draws it as ViZDoom does (``doom_render``), through a ``DoomCamera``."""
+        ``DoomLook`` draws it as ViZDoom does (``doom_render``), through a ``DoomCamera``.
+        ``motion_params``: Doom's ``motion.MotionParams`` moves the player and touches items as
+        ViZDoom does; params with a ``model`` (``simjax.envs.dmlab.pmove.DmlabMotionParams``)
+        move it with that module's ``Pose`` and ``tic`` and touch items with its ``touches``."""
         if not 1 <= task.num_actions <= len(motion.ACTION_NAMES):
             raise ValueError(f"num_actions must be in [1, {len(motion.ACTION_NAMES)}], got {task.num_actions}")
         self.layout = layout
@@ -138,6 +146,8 @@ class MazeEnv(Env):
         self.look = look
         self.light = light
         self.motion_params = motion_params
+        # the motion's module: its Pose and tic (one tic / engine frame, Doom's calling shape)
+        self.motion_model = getattr(motion_params, "model", motion)
         self.auto_reset = auto_reset
 
     # brax Env interface -------------------------------------------------------------------
@@ -154,6 +164,11 @@ class MazeEnv(Env):
         return "simjax-raycaster"
 
     @property
+    def motion_name(self) -> str:
+        """"doom" (ViZDoom's motion) or the motion model's NAME ("dmlab" for DMLab's pmove)."""
+        return getattr(self.motion_model, "NAME", "doom")
+
+    @property
     def num_items(self) -> int:
         return self.layout.items.pos.shape[0]
 
@@ -164,14 +179,14 @@ class MazeEnv(Env):
 
     def reset_to(self, rng: jax.Array, xy, heading) -> State:
         """An episode that starts standing still at ``xy`` facing ``heading`` (radians,
-        counter-clockwise from east; rounded to Doom's angle unit) instead of at a spawn spot,
+        counter-clockwise from east; rounded to the motion's angle unit) instead of at a spawn spot,
         e.g. to replay a ViZDoom walk from its start. The map (a generated one too) and later
         episodes come from ``rng`` as in ``reset``. Works under jit and vmap."""
         key, sub = jax.random.split(rng)
         _, world = self._start(sub)
-        return self._first_state(key, motion.Pose.at(xy, heading), world)
+        return self._first_state(key, self.motion_model.Pose.at(xy, heading), world)
 
-    def _first_state(self, key, pose: motion.Pose, world) -> State:
+    def _first_state(self, key, pose, world) -> State:
         collected = jnp.zeros((self.num_items,), bool)
         ms = MazeState(pose, jnp.int32(0), jnp.float32(0.0), key, collected, world)
         zero = jnp.float32(0.0)
@@ -190,7 +205,8 @@ class MazeEnv(Env):
         world = self.world(ms)
         pose, touched = ms.pose, jnp.zeros_like(ms.collected)
         for _ in range(self.motion_params.tics_per_step):
-            pose = motion.tic(pose, action, world.boxes, self.motion_params, world.line_dir, world.block_origin)
+            pose = self.motion_model.tic(pose, action, world.boxes, self.motion_params, world.line_dir,
+                                         world.block_origin)
             touched = touched | (self.touches(world.items.pos, pose.pos) & ~ms.collected)
         reward = jnp.sum(jnp.where(touched, world.items.reward, 0.0)).astype(jnp.float32)
         reached = jnp.any(touched & world.items.ends)
@@ -225,7 +241,7 @@ class MazeEnv(Env):
         """The map the state is in: the env's own layout, or the state's generated one."""
         return self.layout if ms.world is None else ms.world
 
-    def render(self, pose: motion.Pose, world: Layout | None = None, collected=None) -> jnp.ndarray:
+    def render(self, pose, world: Layout | None = None, collected=None) -> jnp.ndarray:
         world = self.layout if world is None else world
         if collected is None:
             collected = jnp.zeros((world.items.pos.shape[0],), bool)
@@ -236,6 +252,9 @@ class MazeEnv(Env):
 
     def touches(self, item_pos: jnp.ndarray, pos: jnp.ndarray) -> jnp.ndarray:
         """(K,) whether the player at ``pos`` touches each item."""
+        rule = getattr(self.motion_model, "touches", None)
+        if rule is not None:
+            return rule(item_pos, pos, self.motion_params)
         return jnp.all(jnp.abs(item_pos - pos) < self.task.touch_distance, axis=-1)
 
     def _start(self, key: jax.Array) -> tuple[motion.Pose, Layout | None]:
@@ -251,20 +270,27 @@ class MazeEnv(Env):
         """What touching items does besides reward and ending: nothing, for a fixed map."""
         return pose, world, collected
 
+    def _respawned(self, new, old):
+        """``new``, a spawn within an episode (a DMLab level restart), taking over what the
+        motion keeps from ``old`` (the model's ``continue_view``: DMLab's client keeps its view
+        angle); Doom's pose is ``new`` as it is."""
+        keep = getattr(self.motion_model, "continue_view", None)
+        return new if keep is None else keep(new, old)
+
     def _success(self, reached, ep_return):
         return reached
 
-    def _spawn(self, key: jax.Array) -> motion.Pose:
+    def _spawn(self, key: jax.Array):
         k_spot, k_head = jax.random.split(key)
         spot = jax.random.randint(k_spot, (), 0, self.layout.spawns.shape[0])
         if self.task.random_heading:
             heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
         elif self.task.angle_range is not None:
             low, high = self.task.angle_range
-            return motion.Pose.facing(self.layout.spawns[spot], jax.random.randint(k_head, (), low, high + 1))
+            return self.motion_model.Pose.facing(self.layout.spawns[spot], jax.random.randint(k_head, (), low, high + 1))
         else:
             heading = jnp.float32(self.task.heading)
-        return motion.Pose.at(self.layout.spawns[spot], heading)
+        return self.motion_model.Pose.at(self.layout.spawns[spot], heading)
 
 
 def random_walks(env: Env, key: chex.PRNGKey, num_envs: int, steps: int):

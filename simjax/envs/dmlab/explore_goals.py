@@ -30,7 +30,10 @@ with probability ``loop_prob``, every wall a random look of the raycaster's twel
 the goal in a random cell, and after each pickup both the agent and the goal move to new random
 cells. Same length and reward.
 
-Both: 3 actions {turn left, turn right, forward}; no early end (the time limit is a
+Both: 3 actions {turn left, turn right, forward}, moving and touching the goal as DeepMind
+Lab does (``simjax.envs.dmlab.pmove``; ``motion="doom"`` gives the Doom motion they had before,
+for runs made with it); after a pickup the agent's spawn keeps the client's view angle, as
+DMLab's level restart does (``pmove.continue_view``); no early end (the time limit is a
 truncation); ``episode_success`` is 1 for an episode that reached at least one goal.
 
 The paper variant's spanning tree is the minimum spanning tree of random edge weights, which is
@@ -57,8 +60,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from simjax.envs import raycaster
+from simjax.envs.dmlab import pmove
 from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
-from simjax.envs.doom import motion
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
 
 _FAR = 1e9
@@ -220,7 +223,10 @@ class ExploreGoalsPaperEnv(MazeEnv):
     goal after each pickup); ``MazeState.world`` holds the episode's maze."""
 
     def __init__(self, generator: MazeGenerator = MazeGenerator(), max_steps: int = 1350,
-                 goal_reward: float = 10.0, **kwargs):
+                 goal_reward: float = 10.0, motion: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
+        ``kwargs`` (MazeEnv's) wins."""
+        kwargs.setdefault("motion_params", pmove.params_for(motion))
         self.generator = generator
         self.goal_reward = goal_reward
         task = MazeTask("explore-goals-paper", random_heading=True, max_steps=max_steps, num_actions=3)
@@ -238,7 +244,7 @@ class ExploreGoalsPaperEnv(MazeEnv):
         goal = jax.random.randint(k_goal, (), 0, num)
         cell = (goal + jax.random.randint(k_cell, (), 1, num)) % num
         heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
-        pose = motion.Pose.at(world.spawns[cell], heading)
+        pose = self.motion_model.Pose.at(world.spawns[cell], heading)
         items = world.items._replace(pos=world.spawns[goal][None])
         return pose, world._replace(items=items)
 
@@ -258,6 +264,7 @@ class ExploreGoalsPaperEnv(MazeEnv):
     def _on_touch(self, key, pose, world, collected):
         # the goal was touched: the agent moves to a random cell and the goal to another
         new_pose, new_world = self._place(key, world)
+        new_pose = self._respawned(new_pose, pose)
         hit = collected[0]
         pose, world = jax.tree.map(lambda n, o: jnp.where(hit, n, o), (new_pose, new_world), (pose, world))
         return pose, world, jnp.zeros_like(collected)
@@ -272,7 +279,10 @@ class ExploreGoalsEnv(MazeEnv):
     ``spawns`` the 'P' cells (slots of rooms the maze does not have sit at 1e9)."""
 
     def __init__(self, generator: DMLabMazeGenerator = DMLabMazeGenerator(), max_steps: int = 1350,
-                 goal_reward: float = 10.0, **kwargs):
+                 goal_reward: float = 10.0, motion: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
+        ``kwargs`` (MazeEnv's) wins."""
+        kwargs.setdefault("motion_params", pmove.params_for(motion))
         self.generator = generator
         self.goal_reward = goal_reward
         task = MazeTask("explore-goals", random_heading=True, max_steps=max_steps, num_actions=3)
@@ -283,13 +293,13 @@ class ExploreGoalsEnv(MazeEnv):
         super().__init__(template, task, **kwargs)
         self._regenerate = regenerate_where_done(generator, template)
 
-    def _respawn(self, key, world: Layout) -> motion.Pose:
+    def _respawn(self, key, world: Layout):
         """A uniformly drawn spawn point ('P') of the maze, a uniformly random heading."""
         k_spot, k_head = jax.random.split(key)
         valid = world.spawns[:, 0] < _FAR / 2
         spot = jax.random.categorical(k_spot, jnp.where(valid, 0.0, -jnp.inf))
         heading = jax.random.uniform(k_head, (), minval=-math.pi, maxval=math.pi)
-        return motion.Pose.at(world.spawns[spot], heading)
+        return self.motion_model.Pose.at(world.spawns[spot], heading)
 
     def _start(self, key):
         k_maze, k_spawn = jax.random.split(key)
@@ -308,7 +318,7 @@ class ExploreGoalsEnv(MazeEnv):
         # the goal was touched: the level restarts, the agent alone moves to a spawn point and
         # the goal is back in its place
         hit = collected[0]
-        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._respawn(key, world), pose)
+        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._respawned(self._respawn(key, world), pose), pose)
         return pose, world, jnp.zeros_like(collected)
 
     def _success(self, reached, ep_return):

@@ -1,8 +1,10 @@
 """``melon``: reward distraction, after DMLab's Stairway to Melon (paper section 3.3, appendix C).
 
 The map is DeepMind Lab's ``assets/maps/stairway_to_melon.map`` (google-deepmind/lab; read, not
-copied), made flat, in its own coordinates (one DMLab unit is one unit here; DMLab's player
-box is 30 wide, ours 32):
+copied), made flat, in its own coordinates (one DMLab unit is one unit here). The player moves
+and picks up fruit as DMLab's does (``simjax.envs.dmlab.pmove``: a box 30 wide, 8.448 degrees a
+turn step, up to 20.48 units a forward step); ``motion="doom"`` gives the Doom motion and
+pickup rule these worlds had before (a box 32 wide), for runs made with it:
 
 - Outer walls enclose the square x, y in [-512, 512] (brushes 1, 3, 4, 5: 16-unit slabs at
   +-512); a solid block fills x, y in [-448, 448] (brush 2). What is left is a ring corridor
@@ -47,6 +49,7 @@ import jax
 import jax.numpy as jnp
 
 from simjax.envs import raycaster
+from simjax.envs.dmlab import pmove
 from simjax.envs.maze import Layout, MazeEnv, MazeTask
 
 BRICK, CRATE, RED, BLUE, ORANGE = 8, 2, 5, 7, 9  # wall looks (raycaster.TEXTURE_LOOKS)
@@ -90,6 +93,13 @@ MELON_DMLAB_TASK = MazeTask("melon-dmlab", random_heading=False, heading=START_H
 APPLES_TOTAL = APPLE_REWARD * len(APPLES_XY)
 
 
+def melon_env(motion: str = "dmlab", **kwargs) -> MazeEnv:
+    """``melon``: the map under the paper's rules, moving as ``motion`` ("dmlab" or "doom",
+    ``pmove.params_for``) says; a ``motion_params`` in ``kwargs`` (MazeEnv's) wins."""
+    kwargs.setdefault("motion_params", pmove.params_for(motion))
+    return MazeEnv(melon_layout(), MELON_TASK, **kwargs)
+
+
 class MelonLevelEnv(MazeEnv):
     """``melon-dmlab``: the same map under DMLab's level rules (module docstring): 900 steps, and
     the melon (+20) puts the agent back at the start facing north with every fruit back, the
@@ -97,14 +107,17 @@ class MelonLevelEnv(MazeEnv):
     when its return exceeds the apples' 14: without the melon the return is at most 14, with
     k >= 1 melons at least 20k - (k + 1) >= 18 (a lemon per level at most)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, motion: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
+        ``kwargs`` (MazeEnv's) wins."""
         layout = melon_layout()
         layout = layout._replace(items=layout.items._replace(ends=jnp.zeros_like(layout.items.ends)))
+        kwargs.setdefault("motion_params", pmove.params_for(motion))
         super().__init__(layout, MELON_DMLAB_TASK, **kwargs)
 
     def _on_touch(self, key, pose, world, collected):
         hit = collected[-1]  # the melon, the layout's last item
-        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._spawn(key), pose)
+        pose = jax.tree.map(lambda n, o: jnp.where(hit, n, o), self._respawned(self._spawn(key), pose), pose)
         return pose, world, collected & ~hit
 
     def _success(self, reached, ep_return):

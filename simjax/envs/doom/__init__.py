@@ -3,7 +3,8 @@
 (``doom_assets``, the ``assets/`` it reads; ``wad`` reads WAD files), and the real game beside it:
 ``vizdoom_ref`` drives ViZDoom, ``fidelity`` measures simjax against it.
 
-Every maze world moves with this motion (``simjax.envs.maze``), the DMLab ones too; they draw
-with the raycaster's invented looks, MyWayHome with this renderer.
+MyWayHome moves with this motion (``simjax.envs.maze``'s default, ``maze-tiny`` too) and draws with this renderer;
+the DMLab worlds move with DeepMind Lab's (``simjax.envs.dmlab.pmove``; this one for their
+``-doom-motion`` tasks) and draw with the raycaster's invented looks.
 Imports here reach down to ``simjax.envs.raycaster`` only.
 """
