@@ -132,7 +132,7 @@ def hand_update(params, grads, orders, clip, lr):
     the step before left it: (params, the state of each group, the steps taken)."""
     tx = optax.chain(optax.clip_by_global_norm(clip), optax.adam(lr, eps=1e-8))
     step = jax.jit(lambda g, s, p: (lambda u, s: (optax.apply_updates(p, u), s))(*tx.update(g, s, p)))
-    states = {group: tx.init(params[group]) for group in ("policy", "novelty")}
+    states = jax.jit(lambda p: {group: tx.init(p[group]) for group in ("policy", "novelty")})(params)
     params, taken = dict(params), 0
     for k, order in enumerate(orders):
         for i in order:
@@ -189,7 +189,9 @@ def _check_steps(moved, want_moved, adam_state, lr: float, what: str):
 
 
 def _norm(tree) -> float:
-    return float(optax.tree.norm(tree))
+    """The global norm, in float64 on the host (op by op on the device, each leaf's shape would
+    compile programs of its own)."""
+    return float(np.sqrt(sum(np.sum(np.square(np.asarray(x, np.float64))) for x in jax.tree.leaves(tree))))
 
 
 def _cut(traj: Transition, ends) -> tuple[Transition, jnp.ndarray]:
@@ -266,8 +268,8 @@ def test_one_shared_adam_steps_each_piece_in_the_drawn_order(case_name):
             _rel_close(opt_state[group], want_states[group], what + " state", MOMENT_REL)
             assert _adam(opt_state[group]).count.shape == ()  # one count, shared
             assert int(_adam(opt_state[group]).count) == taken == sum(len(p) for p in case.pieces)
-            moved = jax.tree.map(jnp.subtract, params[group], runner.params[group])
-            want_moved = jax.tree.map(jnp.subtract, want_params[group], runner.params[group])
+            moved = jax.tree.map(np.subtract, *jax.device_get((params[group], runner.params[group])))
+            want_moved = jax.tree.map(np.subtract, *jax.device_get((want_params[group], runner.params[group])))
             if group == "novelty":  # the target network never moves
                 chex.assert_trees_all_equal(params[group]["target"], runner.params[group]["target"])
                 moved, want_moved = moved["predictor"], want_moved["predictor"]

@@ -101,11 +101,17 @@ def _timeline(batch, history):
     return tl
 
 
+def _from_timeline(batch, history, read):
+    """``read(timeline)`` of the batch's timeline, in one compiled program (op by op, each
+    slice of the timeline would compile a program of its own)."""
+    return jax.jit(lambda *b: read(_timeline(b, history)))(*batch)
+
+
 def _policy(batch):
     obs, reset = batch[0], batch[1]
     net = ActorCritic(num_actions=A)
     carry = net.initial_carry(obs.shape[1])
-    params = net.init(jax.random.PRNGKey(0), carry, obs, reset)
+    params = jax.jit(net.init)(jax.random.PRNGKey(0), carry, obs, reset)
     return params, lambda p: net.apply(p, carry, obs, reset)[1:]  # logits, value
 
 
@@ -113,23 +119,23 @@ def _rnd(module):
     def build(batch):
         frames = batch[0].astype(jnp.float32) / 255.0
         net = module()
-        return net.init(jax.random.PRNGKey(0), frames), lambda p: net.apply(p, frames)
+        return jax.jit(net.init)(jax.random.PRNGKey(0), frames), lambda p: net.apply(p, frames)
     return build
 
 
 def _sim(batch):
     model = SIM(A, obs_len=3, act_len=2)
-    tl = _timeline(batch, model.history)
-    x = tl.frames.astype(jnp.float32) / 255.0
-    net, windows = model.net(), model.windows(tl)
-    return net.init(jax.random.PRNGKey(0), x, tl.actions, windows), lambda p: net.apply(p, x, tl.actions, windows)
+    x, actions, windows = _from_timeline(batch, model.history,
+                                         lambda tl: (tl.frames.astype(jnp.float32) / 255.0, tl.actions, model.windows(tl)))
+    net = model.net()
+    return jax.jit(net.init)(jax.random.PRNGKey(0), x, actions, windows), lambda p: net.apply(p, x, actions, windows)
 
 
 def _icm(batch):
-    stacks = ICM(A).stacks(_timeline(batch, ICM(A).history))
+    stacks = _from_timeline(batch, ICM(A).history, ICM(A).stacks)
     net = ICMNet(A)
     actions = batch[2]
-    return net.init(jax.random.PRNGKey(0), stacks, actions), lambda p: net.apply(p, stacks, actions)
+    return jax.jit(net.init)(jax.random.PRNGKey(0), stacks, actions), lambda p: net.apply(p, stacks, actions)
 
 
 def _ec(batch):
@@ -141,7 +147,7 @@ def _ec(batch):
         a, b = net.apply(p, e, method=ReachabilityNet.halves)
         return e, net.apply(p, a[0], b[1], method=ReachabilityNet.head)
 
-    return net.init(jax.random.PRNGKey(0), frames[0], frames[0]), run
+    return jax.jit(net.init)(jax.random.PRNGKey(0), frames[0], frames[0]), run
 
 
 # name: (builder, D: the most bfloat16 products chained on a path to an output)
