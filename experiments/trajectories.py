@@ -26,6 +26,7 @@ from simjax.envs import is_mywayhome, rollout, uniform_policy
 from simjax.envs.doom import mywayhome_map
 from simjax.evaluate import nearest_spots
 from simjax.runs import restore
+from simjax.runs.grid import grid_of
 
 
 def episodes(env, network, params, key, num_envs: int):
@@ -77,6 +78,14 @@ def ends_near(pos, alive, spots: dict) -> dict:
     return nearest_spots(np.stack([first_episode(pos, alive, n)[-1] for n in range(pos.shape[1])]), spots)
 
 
+def member_name(restored, index: int) -> str:
+    """"seed S", and in a sweep's folder the member's point first: "bonus_scale=1e-06, seed S"."""
+    grid = grid_of(restored.sweep)  # [{}] for a plain run; members are point-major
+    point = grid[index * len(grid) // len(restored.seeds)]
+    return ", ".join([f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in point.items()]
+                     + [f"seed {restored.seeds[index]}"])
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path)
@@ -95,7 +104,7 @@ def main(argv=None) -> int:
     run = jax.jit(lambda p, k: episodes(env, network, p, k, args.envs))
     drawn = None
     # only the policy parameters: they read the same from checkpoints of older env states
-    policies = [(f"seed {s}", restored.policy(i)) for i, s in enumerate(restored.seeds)]
+    policies = [(member_name(restored, i), restored.policy(i)) for i in range(len(restored.seeds))]
     if args.random:
         run_random = jax.jit(lambda k: episodes(env, network, None, k, args.envs))
     print(f"{args.run.name} at {restored.env_steps:,} agent steps per seed, {args.envs} episodes each:")
