@@ -216,7 +216,7 @@ def test_the_covariance_stays_float32_under_bfloat16():
 
 def test_config_and_flags():
     config = TrainConfig(algo="e3b")
-    assert config.bonus_scale == 3e-6 and config.novelty.e3b_ridge == RIDGE
+    assert config.bonus_scale == 1e-6 and config.novelty.e3b_ridge == RIDGE
     assert TrainConfig(algo="e3b", e3b_ridge=0.5).novelty.e3b_ridge == 0.5
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="--e3b-ridge"):
