@@ -41,7 +41,7 @@ LEARNER_DEFAULTS = {
 PAPER_BONUS_SCALE = {"a2c": 0.0, "sim": 0.001, "rnd": 0.01, "icm": 0.01, "ec": 0.01}
 # E3B is not in the paper: the least harmful beta of a sweep here (1e-6, 5e-6, 3e-5 on
 # maze-very-sparse, within its authors' ViZDoom range 3e-7 ... 3e-5); docs/paper-differences.md
-DEFAULT_BONUS_SCALE = {**PAPER_BONUS_SCALE, "e3b": 1e-6}
+DEFAULT_BONUS_SCALE = {**PAPER_BONUS_SCALE, "e3b": 1e-6, "e3b-sim": 1e-6}
 # the settings that change no array shape once windows are laid out for their largest values:
 # they are arrays in the runner state (``Hyper``), so a sweep over them is one compiled program
 SWEEPABLE = ("learning_rate", "gamma", "value_coef", "entropy_coef", "max_grad_norm", "task_scale",

@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-MODELS = ("sim", "rnd", "icm", "ec", "e3b")  # and "a2c": no model, no bonus
+MODELS = ("sim", "rnd", "icm", "ec", "e3b", "e3b-sim")  # and "a2c": no model, no bonus
 SIM_COMBINE = ("full", "itr", "concat")
 SIM_SEQUENCE = ("lstm", "ff")
 SIM_TARGET = ("rnd", "embed")
@@ -93,7 +93,7 @@ class NoveltySettings:
 
     @property
     def uses_rnd_target(self) -> bool:
-        return self.algo == "rnd" or (self.algo == "sim" and self.sim_target == "rnd")
+        return self.algo == "rnd" or (self.algo in ("sim", "e3b-sim") and self.sim_target == "rnd")
 
 
 def check_observation(settings: NoveltySettings, obs_shape, task: str = "this task") -> None:
@@ -111,7 +111,7 @@ def check_observation(settings: NoveltySettings, obs_shape, task: str = "this ta
         raise ValueError(
             f"--algo {settings.algo}'s RND target needs frames of at least {RND_TARGET_MIN_SIZE}x"
             f"{RND_TARGET_MIN_SIZE}; {task} gives {shape[0]}x{shape[1]}. "
-            "Use --algo sim with --sim-target embed, or --algo icm."
+            f"Use --algo {'e3b-sim' if settings.algo == 'e3b-sim' else 'sim'} with --sim-target embed, or --algo icm."
         )
 
 

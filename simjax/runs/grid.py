@@ -46,7 +46,7 @@ def check_sweep(settings: dict, sweep: dict[str, list]) -> tuple[TrainConfig, li
     algo = settings.get("algo", TrainConfig.algo)
     swept = {k for k, v in sweep.items() if len(v) > 1}
     pointless = ({"bonus_scale", "forward_weight", "rl_weight", "obs_len", "act_len"} if algo == "a2c"
-                 else {"obs_len", "act_len"} if algo != "sim" else set()) & swept
+                 else {"obs_len", "act_len"} if algo not in ("sim", "e3b-sim") else set()) & swept
     if algo in ("rnd", "ec", "e3b"):  # no forward / inverse split of the model's loss
         pointless |= {"forward_weight"} & swept
     if pointless:
