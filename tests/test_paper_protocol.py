@@ -312,3 +312,121 @@ def test_the_screen_counts_whole_rows_of_the_second_half_and_calls_an_arm_that_b
     assert "second half (50, 100]: 120/600 (20.000%) against the control's 0/600" in out
     assert out.count("HELPS") == 1 and "1 of 2 arm(s) help" in out
     assert out.count("precision bfloat16, the control's highest") == 1  # said of the arm that differs, only
+
+
+# -- Figures 5 and 6: thresholds at any level, any per-episode column, the DMLab figure scripts ------
+
+RETURN = "mean_extrinsic_return"
+
+
+def return_series(returns, episodes, step=10):
+    """One seed's rows with an episode return column: row i ends at (i + 1) * step agent steps."""
+    n = len(returns)
+    return protocol.Series.from_columns({"env_steps": [(i + 1) * step for i in range(n)], "seed": [0] * n,
+                                         "success_ratio": [0.0] * n, "episodes": list(episodes), RETURN: list(returns)})
+
+
+def test_steps_to_a_threshold_at_another_level_reaches_at_the_row_its_window_crosses_it():
+    # 60 episodes a row, so each window is the last two rows: 72/120 = 0.6, 96/120 = 0.8, 102/120 = 0.85, 0.85
+    s = series([0.5, 0.7, 0.9, 0.8, 0.9], [60] * 5)
+    assert protocol.windowed_mean(s).tolist()[1:] == pytest.approx([0.6, 0.8, 0.85, 0.85])
+    assert protocol.steps_to_threshold(s, 0.8) == 30  # exactly 0.8 counts
+    assert protocol.steps_to_threshold(s, 0.81) == 40 and protocol.steps_to_threshold(s) is None  # 0.9: never
+
+
+def test_the_return_window_weights_each_row_by_its_episodes():
+    # row sums 600, 1500, 0, 640, 1750; windows of >= 100 episodes: rows 0-1 (110), 0-2 (110), 0-3 (150), 3-4 (110)
+    s = return_series([10.0, 30.0, math.nan, 16.0, 25.0], [60, 50, 0, 40, 70])
+    assert protocol.episode_sums(s, RETURN).tolist() == [600.0, 1500.0, 0.0, 640.0, 1750.0]
+    windowed = protocol.windowed_mean(s, RETURN)
+    assert math.isnan(windowed[0])
+    assert windowed[1:].tolist() == pytest.approx([2100 / 110, 2100 / 110, 2740 / 150, 2390 / 110])
+    # rows 0-1 average 20 unweighted, but 19.09 by episodes: 20 is first reached at row 4
+    assert protocol.steps_to_threshold(s, 20.0, column=RETURN) == 50
+    assert protocol.steps_to_threshold(s, 19.0, column=RETURN) == 20
+    with pytest.raises(ValueError):
+        protocol.episode_sums(return_series([math.nan], [3]), RETURN)
+
+
+def test_level_is_final_success_of_any_column_and_at_any_step():
+    # rows of 30k steps; up to 200k the rows end at 30k..180k, and the fewest last of them covering >= 100k
+    # are the rows ending at 90k..180k (from 60k): returns 10, 20, 30, 40 over 10, 20, 30, 40 episodes
+    returns = [0.0, 0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 50.0, 50.0, 50.0]
+    s = return_series(returns, [5, 5, 10, 20, 30, 40, 10, 10, 10, 10], step=30_000)
+    at = protocol.level(s, RETURN, until=200_000)
+    assert (at.value, at.total, at.episodes, at.from_step, at.to_step) == (30.0, 3000.0, 100, 60_000, 180_000)
+    final = protocol.level(s, RETURN)  # the last 4 rows: (180k, 300k]
+    assert (final.value, final.episodes, final.from_step, final.to_step) == (50.0, 40, 180_000, 300_000)
+    early = protocol.level(s, RETURN, until=20_000)  # no row ends by 20k
+    assert math.isnan(early.value) and early.episodes == 0
+    ratios = series([0.0] * 5 + [0.5] + [1.0] * 4, [20] * 10, step=24_640)
+    success = protocol.level(ratios)
+    assert (success.value, success.total, success.episodes) == (protocol.final_success(ratios).ratio, 90.0, 100)
+
+
+def test_mean_curve_of_the_return_and_success_curve_is_it_on_success():
+    seeds = {0: return_series([10.0, 20.0], [100, 100]), 1: return_series([30.0, 40.0], [100, 100])}
+    curve = protocol.mean_curve(seeds, RETURN)
+    assert curve.mean.tolist() == [20.0, 30.0] and curve.low.tolist() == [10.0, 20.0] and curve.high.tolist() == [30.0, 40.0]
+    runs = {0: series([0.0, 0.2, 0.4], [100, 50, 50]), 1: series([1.0, 0.5, 1.0], [100, 100, 100])}
+    a, b = protocol.success_curve(runs), protocol.mean_curve(runs, protocol.SUCCESS)
+    assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip((a.mean, a.low, a.high), (b.mean, b.low, b.high)))
+
+
+def dmlab_run(root: Path, env: str, algo: str, budget: int, per_seed: list[list[float]], column: str) -> Path:
+    """A run folder of rows of 100k agent steps and 100 episodes (so each window is one row)."""
+    config = {"env": env, "algo": algo, "total_steps": budget, "num_seeds": len(per_seed), "seed": 0, "log_every": 100_000}
+    rows = [{"env_steps": 100_000 * (i + 1), "seed": seed, "episodes": 100, "success_ratio": 0.0, column: v}
+            for seed, values in enumerate(per_seed) for i, v in enumerate(values)]
+    return write_folder(root / f"{env}-{algo}", config, rows)
+
+
+def test_figure6_gives_each_seeds_steps_to_80_percent_and_the_claims_verdicts(tmp_path, capsys):
+    import figure6
+
+    up = lambda first: [0.5] * (first - 1) + [0.8] + [0.9] * (10 - first)  # first row (1-based) at >= 0.8
+    sim = dmlab_run(tmp_path, "melon", "sim", 1_000_000, [up(2), up(1), up(3)], "success_ratio")
+    rnd = dmlab_run(tmp_path, "melon", "rnd", 1_000_000, [up(7), up(8), [0.5] * 10], "success_ratio")
+    a2c = dmlab_run(tmp_path, "melon", "a2c", 1_000_000, [[0.4] * 10] * 3, "success_ratio")
+    other = dmlab_run(tmp_path, "maze-dense", "sim", 1_000_000, [[0.1] * 10], "success_ratio")
+    out = tmp_path / "paper-figure6"
+    assert figure6.main([str(sim), str(rnd), str(a2c), str(other), "--out", str(out)]) == 0
+    md = (out / "figure6.md").read_text()
+    assert "| 200k / 100k / 300k | 200k [100k, 300k] | 3/3 |" in md  # SIM: median 200k
+    assert "| 700k / 800k / >1.00M | 800k [700k, >1.00M] | 2/3 |" in md  # RND: median 800k
+    assert "0.400 (100) / 0.400 (100) / 0.400 (100) | 0.400 [0.400, 0.400]" in md  # LSTM-A3C's final success
+    assert "RND: SIM : RND = 0.25 [" in md and "SIM 4.0x as fast (holds)" in md
+    assert "LSTM-A3C: SIM : LSTM-A3C = <0.20" in md and "ICM: no run" in md and "EC: no run" in md
+    verdicts = [line.rsplit("|", 2)[1].strip() for line in md.splitlines() if line.startswith(("| SIM passes", "| at least",
+                                                                                                   "| LSTM-A3C converges"))]
+    assert verdicts == ["**holds**", "**cannot tell**", "**holds**"]  # 3x: holds where run, ICM and EC missing
+    assert "--algo ec --total-steps 1600000 --num-seeds 3 --ec-pretrain-epochs 3" in md and "`maze-dense-sim`" in md
+    assert "running mean" in md and "0.111 [0.098, 0.126]" in md
+    table = (out / "figure6.csv").read_text()
+    assert "200000;100000;300000" in table and "700000;800000;," in table
+    assert "missing ICM: python -m simjax.train --env melon --algo icm" in capsys.readouterr().out
+    assert (out / "figure6.png").stat().st_size > 0 and "success_ratio" in (out / "figure6-curves.csv").read_text()
+
+
+def test_figure5_gives_each_seeds_reward_at_1m_and_steps_to_20(tmp_path):
+    import figure5
+
+    reach = lambda first, after: [10.0] * (first - 1) + [after] * (21 - first)  # rows of 100k to 2M
+    sim = dmlab_run(tmp_path, "explore-goals", "sim", 2_000_000, [reach(6, 25.0), reach(8, 24.0), reach(9, 23.0)], RETURN)
+    icm = dmlab_run(tmp_path, "explore-goals", "icm", 2_000_000, [reach(16, 21.0), reach(17, 21.0), reach(18, 21.0)], RETURN)
+    rnd = dmlab_run(tmp_path, "explore-goals", "rnd", 2_000_000, [reach(9, 22.0), reach(10, 22.0), reach(11, 22.0)], RETURN)
+    a2c = dmlab_run(tmp_path, "explore-goals", "a2c", 2_000_000, [[9.0] * 20] * 3, RETURN)
+    out = tmp_path / "paper-figure5"
+    assert figure5.main([str(p) for p in (sim, icm, rnd, a2c)] + ["--out", str(out)]) == 0
+    md = (out / "figure5.md").read_text()
+    # SIM reaches 20 at 600k, 800k, 900k; at 1M (its last 100k: the row ending at 1M) it scores 25, 24, 23
+    assert "| 600k / 800k / 900k | 800k [600k, 900k] | 3/3 | 25.00 (100) / 24.00 (100) / 23.00 (100) | 24.00 [" in md
+    assert "| 1.60M / 1.70M / 1.80M | 1.70M [1.60M, 1.80M] | 3/3 |" in md  # ICM
+    assert "| 900k / 1.00M / 1.10M | 1.00M [900k, 1.10M] | 3/3 |" in md  # RND: by 1M, not "about 2M"
+    assert "9.00 (100) / 9.00 (100) / 9.00 (100) | 9.00 [9.00, 9.00] |" in md  # LSTM-A3C's final reward
+    verdicts = [line.rsplit("|", 2)[1].strip() for line in md.splitlines() if line.startswith(("| SIM scores",
+                                                                                                   "| ICM and RND", "| the agent"))]
+    assert verdicts == ["**holds**", "**does not hold**", "**holds**"]
+    assert "ICM: median 1.70M" in md and "(holds); RND: median 1.00M" in md and "4.91 [4.42, 5.41]" in md
+    table = (out / "figure5.csv").read_text()
+    assert "600000;800000;900000" in table and "25;24;23" in table and "missing" not in md

@@ -1,5 +1,5 @@
 """The paper's evaluation protocol, defined once: how a run's metrics.csv becomes the numbers
-of Table 1, Table 2 and the curves of Figures 7, 9 and 11.
+of Table 1, Table 2 and the curves of Figures 5, 6, 7, 9 and 11.
 
 A run folder's metrics.csv has one row per seed per log interval (about 25k agent steps); a
 row's ``success_ratio`` is over the ``episodes`` that ended in that interval (NaN if none), so
@@ -24,6 +24,13 @@ the first row) to its own. Every statistic below sums whole rows: episodes are n
 - Curves (``success_curve``): at each row, each seed's success ratio over its most recent >=
   100 episodes (the quantity steps-to-0.9 thresholds; NaN before a seed has 100), the mean
   over seeds and a min-max band, against agent steps.
+- Any per-episode column, not only the success ratio (Figures 5 and 6: the episode return,
+  ``mean_extrinsic_return``, and success at 0.8): a row's mean over its episodes times its
+  ``episodes`` is its sum (``episode_sums``), so the windows above hold for any column,
+  weighted by episodes. ``windowed_mean`` and ``steps_to_threshold(..., column=)`` are the
+  episode windows, ``level`` the step window (``final_success`` of any column, optionally of
+  the rows up to a given step, e.g. the return at 1M), ``mean_curve`` the curves. On the
+  success ratio each is exactly the function above.
 
 ``read_points(folder)`` reads a run folder (one point) or a sweep folder (``python -m
 simjax.sweep``: metrics.csv has one leading column per swept config field before
@@ -47,6 +54,7 @@ from simjax.config_history import current_record
 WINDOW_STEPS = 100_000  # final success: the last rows covering at least this many agent steps
 WINDOW_EPISODES = 100  # steps to 0.9 and curves: the most recent rows holding at least this many episodes
 THRESHOLD = 0.9
+SUCCESS = "success_ratio"  # the column the statistics read unless told another
 RESAMPLES = 10_000
 BOOTSTRAP_SEED = 0
 CONFIDENCE = 0.95
@@ -114,30 +122,78 @@ class Final:
     to_step: int
 
 
+def episode_sums(series: Series, column: str = SUCCESS) -> np.ndarray:
+    """Each row's sum of ``column`` over the episodes that ended in it: ``successes`` (whole
+    episodes) for the success ratio, otherwise the row's mean over its episodes times
+    ``episodes`` (0 where none ended)."""
+    if column == SUCCESS:
+        return series.successes
+    values = series.columns[column]
+    if np.any(~np.isfinite(values) & (series.episodes > 0)):
+        raise ValueError(f"a row with episodes > 0 has no finite {column}")
+    return np.where(series.episodes > 0, np.nan_to_num(values) * series.episodes, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Level:
+    """A seed's mean of a column over the episodes of a window of rows (``value`` NaN if no
+    episode ended there); ``total`` is the column summed over those episodes."""
+
+    value: float
+    total: float
+    episodes: int
+    from_step: int  # the window covers agent steps (from_step, to_step]
+    to_step: int
+
+
+def level(series: Series, column: str = SUCCESS, window_steps: int = WINDOW_STEPS, until: int | None = None) -> Level:
+    """``column``'s mean over the episodes that ended in the fewest last rows covering at least
+    ``window_steps`` agent steps, of the rows that end at or before ``until`` (all rows if
+    None; a window of no rows, NaN, if none does): ``final_success`` of any column, at any step
+    (Figure 5's return at 1M)."""
+    if until is not None:
+        series = Series(*(a[series.env_steps <= until] for a in (series.env_steps, series.episodes, series.successes)),
+                        {k: v[series.env_steps <= until] for k, v in series.columns.items()})
+    if not series.env_steps.size:
+        return Level(math.nan, 0.0, 0, 0, 0)
+    start = window_start_by_steps(series.env_steps, window_steps)
+    total, episodes = episode_sums(series, column)[start:].sum(), int(series.episodes[start:].sum())
+    value = total / episodes if episodes else math.nan
+    begin = int(series.env_steps[start - 1]) if start > 0 else 0
+    return Level(value, float(total), episodes, begin, series.last_step)
+
+
 def final_success(series: Series, window_steps: int = WINDOW_STEPS) -> Final:
     """Successes / episodes over the episodes that ended in the fewest last rows covering at
     least ``window_steps`` agent steps (Table 1)."""
-    start = window_start_by_steps(series.env_steps, window_steps)
-    successes, episodes = int(series.successes[start:].sum()), int(series.episodes[start:].sum())
-    ratio = successes / episodes if episodes else math.nan
-    begin = int(series.env_steps[start - 1]) if start > 0 else 0
-    return Final(ratio, successes, episodes, begin, series.last_step)
+    at = level(series, SUCCESS, window_steps)
+    return Final(at.value, int(at.total), at.episodes, at.from_step, at.to_step)
+
+
+def windowed_mean(series: Series, column: str = SUCCESS, min_episodes: int = WINDOW_EPISODES) -> np.ndarray:
+    """At each row, ``column``'s mean over the most recent >= ``min_episodes`` episodes (the
+    fewest whole rows ending there, each weighted by its episodes); NaN while fewer episodes
+    have ended."""
+    sums = episode_sums(series, column)
+    out = np.full(series.env_steps.shape, np.nan)
+    for end in range(len(out)):
+        start = window_start_by_episodes(series.episodes, end, min_episodes)
+        if start is not None:
+            out[end] = sums[start:end + 1].sum() / series.episodes[start:end + 1].sum()
+    return out
 
 
 def windowed_success(series: Series, min_episodes: int = WINDOW_EPISODES) -> np.ndarray:
     """At each row, the success ratio over the most recent >= ``min_episodes`` episodes (the
     fewest whole rows ending there); NaN while fewer episodes have ended."""
-    out = np.full(series.env_steps.shape, np.nan)
-    for end in range(len(out)):
-        start = window_start_by_episodes(series.episodes, end, min_episodes)
-        if start is not None:
-            out[end] = series.successes[start:end + 1].sum() / series.episodes[start:end + 1].sum()
-    return out
+    return windowed_mean(series, SUCCESS, min_episodes)
 
 
-def steps_to_threshold(series: Series, threshold: float = THRESHOLD, min_episodes: int = WINDOW_EPISODES) -> int | None:
-    """The first ``env_steps`` at which ``windowed_success`` >= ``threshold`` (Table 2); None if never."""
-    reached = np.flatnonzero(windowed_success(series, min_episodes) >= threshold)
+def steps_to_threshold(series: Series, threshold: float = THRESHOLD, min_episodes: int = WINDOW_EPISODES,
+                       column: str = SUCCESS) -> int | None:
+    """The first ``env_steps`` at which ``windowed_mean`` of ``column`` (the success ratio:
+    Table 2; the return: Figure 5) >= ``threshold``; None if never."""
+    reached = np.flatnonzero(windowed_mean(series, column, min_episodes) >= threshold)
     return int(series.env_steps[reached[0]]) if reached.size else None
 
 
@@ -262,6 +318,13 @@ class Curve:
 
 def success_curve(seeds: dict[int, Series], min_episodes: int = WINDOW_EPISODES) -> Curve:
     """``windowed_success`` of each seed, at the agent steps all seeds logged."""
+    return mean_curve(seeds, SUCCESS, min_episodes)
+
+
+def mean_curve(seeds: dict[int, Series], column: str = SUCCESS, min_episodes: int = WINDOW_EPISODES) -> Curve:
+    """``windowed_mean`` of ``column`` of each seed, at the agent steps all seeds logged: a
+    running mean over each seed's most recent >= ``min_episodes`` episodes, then the mean and
+    the min-max over seeds."""
     if not seeds:
         empty = np.zeros(0)
         return Curve(empty.astype(np.int64), empty, empty, empty, empty.astype(np.int64))
@@ -271,7 +334,7 @@ def success_curve(seeds: dict[int, Series], min_episodes: int = WINDOW_EPISODES)
     steps = np.asarray(sorted(common), dtype=np.int64)
     table = np.full((len(seeds), steps.size), np.nan)
     for i, s in enumerate(seeds.values()):
-        ratio = windowed_success(s, min_episodes)
+        ratio = windowed_mean(s, column, min_episodes)
         at = {int(k): r for k, r in zip(s.env_steps, ratio)}
         table[i] = [at[int(k)] for k in steps]
     have = np.isfinite(table)
