@@ -22,7 +22,7 @@ from simjax.envs import make  # noqa: E402
 from simjax.envs.dmlab import melon  # noqa: E402
 from simjax.envs.doom import mywayhome_map  # noqa: E402
 from simjax.envs.doom.motion import Pose  # noqa: E402
-from simjax.envs.topdown import draw_topdown  # noqa: E402
+from simjax.envs.topdown import draw_topdown, wall_colours  # noqa: E402
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -77,7 +77,7 @@ def draw_melon():
     env = make("melon")
     fig, axes = plt.subplots(1, 1 + len(MELON_VIEWS), figsize=(3.2 * (1 + len(MELON_VIEWS)), 3.4),
                              gridspec_kw={"width_ratios": [1.6] + [1] * len(MELON_VIEWS)})
-    draw_topdown(env.layout, ax=axes[0], title="melon (Stairway to Melon)")
+    draw_topdown(env.layout, ax=axes[0], title="melon (Stairway to Melon)", colours=wall_colours(env))
     for ax, (caption, x, y, deg) in zip(axes[1:], MELON_VIEWS):
         ax.imshow(env.render(_pose(x, y, deg)), interpolation="nearest")
         ax.set_title(caption, fontsize=8)
@@ -96,7 +96,7 @@ def draw_explore_goals(seeds=(0, 1, 2)):
         x, y = (float(v) for v in ms.pose.pos)
         world = ms.world._replace(spawns=ms.world.spawns[ms.world.spawns[:, 0] < 1e8])  # the rooms' 'P' cells
         draw_topdown(world, ax=axes[0, col], pose=(x, y, float(ms.pose.heading)),
-                     title=f"explore-goals (DMLab's maze), key {seed}")
+                     title=f"explore-goals (DMLab's maze), key {seed}", colours=wall_colours(env))
         if col < len(seeds) - 1:
             axes[0, col].get_legend().remove()
         axes[1, col].imshow(state.obs, interpolation="nearest")

@@ -126,11 +126,11 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from simjax.envs.topdown import draw_topdown
+    from simjax.envs.topdown import draw_topdown, wall_colours
 
     name, pos, alive = drawn
     fig, ax = plt.subplots(figsize=(8, 6))
-    draw_topdown(env.layout, ax=ax, title=f"{args.run.name}, {name}: {args.envs} episodes")
+    draw_topdown(env.layout, ax=ax, title=f"{args.run.name}, {name}: {args.envs} episodes", colours=wall_colours(env))
     for n in range(pos.shape[1]):
         p = first_episode(pos, alive, n)
         ax.plot(p[:, 0], p[:, 1], linewidth=0.8, alpha=0.7)

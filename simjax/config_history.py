@@ -19,10 +19,12 @@ rebuilds the run it was:
     (``-invented-looks``, ``-flat-TEX...``), the look kept.
   - 2026-12-07: the DMLab worlds (``melon``, ``melon-dmlab``, ``explore-goals``,
     ``explore-goals-paper``) took DeepMind Lab's player motion and pickup rule
-    (``simjax.envs.dmlab.pmove``). Before that they moved and touched items as MyWayHome does
-    (Doom's motion): ``melon-doom-motion``, ``melon-dmlab-doom-motion``,
-    ``explore-goals-doom-motion`` and ``explore-goals-paper-doom-motion`` now. These worlds have
-    one look, so only the exact names are read so (``melon-dmlab`` is no look of ``melon``).
+    (``simjax.envs.dmlab.pmove``) and DeepMind Lab's look (its textures, sky and item models,
+    ``simjax.envs.dmlab.look``). Before that they moved and touched items as MyWayHome does
+    (Doom's motion) and were drawn with ``raycaster``'s invented looks: ``melon-doom-motion``,
+    ``melon-dmlab-doom-motion``, ``explore-goals-doom-motion`` and
+    ``explore-goals-paper-doom-motion`` now, which keep both. These names have no other looks,
+    so only the exact names are read so (``melon-dmlab`` is no look of ``melon``).
 
 Only the standard library.
 """

@@ -293,7 +293,7 @@ def table(results: dict) -> str:
     return "\n".join(lines)
 
 
-def write_gif(path: Path, layout, episodes, title: str) -> None:
+def write_gif(path: Path, layout, episodes, title: str, colours=None) -> None:
     """An animated GIF of ``episodes`` [(views (T, 42, 42, 3), xy (T, 2))]: each frame the view
     (scaled up, nearest) beside the path so far on the map. The map is drawn by matplotlib once
     and the path onto copies of it with PIL, so a frame costs milliseconds, not a figure."""
@@ -306,7 +306,7 @@ def write_gif(path: Path, layout, episodes, title: str) -> None:
     from simjax.envs.topdown import draw_topdown
 
     fig, ax = plt.subplots(figsize=(5.2, 3.5), dpi=72)
-    draw_topdown(layout, ax=ax, title=title, spawns=False)
+    draw_topdown(layout, ax=ax, title=title, spawns=False, colours=colours)
     fig.tight_layout()
     fig.canvas.draw()
     base = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
@@ -404,7 +404,8 @@ def play(args, argv: list[str], config, env, limit: int) -> int:
             video = None
             if args.video:
                 video = args.video if len(indices) == 1 else args.video.with_name(args.video.stem + tag + ".gif")
-                write_gif(video, env.layout, recorded, f"{args.run.name}, seed {restored.seeds[k]}, {args.backend}")
+                write_gif(video, env.layout, recorded, f"{args.run.name}, seed {restored.seeds[k]}, {args.backend}",
+                          colours=getattr(getattr(env, "look", None), "wall_rgb", None))
             record_json = {
                 "run": str(args.run), "env": config.env, "backend": args.backend, "seed_index": k,
                 "seed": restored.seeds[k], "env_steps": restored.env_steps, "eval_seed": args.eval_seed,

@@ -15,6 +15,7 @@ from helpers import walk
 
 from simjax.envs import make, raycaster
 from simjax.envs.dmlab import dmlab_maze, melon, pmove
+from simjax.envs.dmlab import look as dmlab_look
 from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
 from simjax.envs.dmlab.explore_goals import ExploreGoalsEnv, ExploreGoalsPaperEnv, GridGraph, MazeGenerator, random_spanning_tree
 
@@ -33,7 +34,7 @@ def _count(frame, lo, hi):
 
 
 RED = ((120, 0, 0), (255, 60, 60))  # an apple's body
-YELLOW = ((150, 140, 0), (255, 255, 110))  # the lemon's body
+YELLOW = ((200, 200, 0), (255, 255, 110))  # the lemon's body (not the orange floor, nor the apples' edges on it)
 
 
 # ---- melon ---------------------------------------------------------------------------------
@@ -135,11 +136,14 @@ def test_fruit_sprites_have_their_own_look_and_vanish_once_collected():
     east = env.motion_model.Pose.at(jnp.array([40.0, -480.0]), jnp.float32(0.0))  # down the south side: apples
     west = env.motion_model.Pose.at(jnp.array([-40.0, -480.0]), jnp.float32(math.pi))  # the lemon
     render = jax.jit(env.render)
+    every = jnp.ones((env.num_items,), bool)
     apples, lemon = np.asarray(render(east)), np.asarray(render(west))
-    assert _count(apples, *RED) >= 8 and _count(apples, *YELLOW) == 0
-    assert _count(lemon, *YELLOW) >= 4 and _count(lemon, *RED) == 0
-    gone = np.asarray(render(east, None, jnp.ones((env.num_items,), bool)))
-    assert _count(gone, *RED) == 0
+    gone_east, gone_west = np.asarray(render(east, None, every)), np.asarray(render(west, None, every))
+    # the pixels the fruit cover (the orange floor is no fruit): red apples, a yellow lemon
+    on_apples, on_lemon = np.any(apples != gone_east, -1), np.any(lemon != gone_west, -1)
+    assert _count(apples[on_apples], *RED) >= 8 and _count(apples[on_apples], *YELLOW) == 0
+    assert _count(lemon[on_lemon], *YELLOW) >= 4 and _count(lemon[on_lemon], *RED) == 0
+    assert _count(gone_east, *RED) == 0
 
 
 def test_nearer_sprites_hide_farther_ones():
@@ -281,7 +285,7 @@ def test_dmlab_layout_walls_are_the_faces_between_open_and_walled_cells():
         np.testing.assert_allclose(spawns[sp_ok], want)
     looks = np.asarray(layouts.walls.texture)
     standing = np.stack([jax.tree.map(lambda x, i=i: x[i], layouts).walls.standing() for i in range(10)])
-    assert len(np.unique(looks[standing])) > 2  # per-maze themes and decals
+    assert len(np.unique(looks[standing])) > 2  # the corridors' wall and each maze's drawn room wall
 
 
 # ---- explore-goals: the DMLab task ----------------------------------------------------------
@@ -410,8 +414,8 @@ def test_generated_mazes_are_connected_have_loops_and_match_their_walls():
         assert standing[edges:].all()  # the boundary always stands
         far = np.asarray(layout.boxes)[:edges][is_open[i]]
         assert (far > 1e8).all()  # an open wall's collision box is out of reach
-    looks = np.asarray(layouts.walls.texture)
-    assert len(np.unique(looks)) == raycaster.NUM_TEXTURES and not (looks == looks[0]).all()
+    looks = np.asarray(layouts.walls.texture)  # DMLab's look: MISHMASH's 20 walls
+    assert len(np.unique(looks)) == len(dmlab_look.MISHMASH_WALLS) and not (looks == looks[0]).all()
 
 
 def test_generator_rejects_bad_settings():

@@ -25,7 +25,8 @@ took its three settings from:
   50 steps; a seconds-long sanity check of the whole pipeline (used by the learning test).
 
 The paper's other two worlds (``simjax.envs.dmlab.melon``, ``simjax.envs.dmlab.explore_goals``),
-moving and picking up items as DeepMind Lab does (``simjax.envs.dmlab.pmove``):
+moving and picking up items as DeepMind Lab does (``simjax.envs.dmlab.pmove``) and drawn with
+DeepMind Lab's textures, sky and item models (``simjax.envs.dmlab.look``):
 - ``melon``: Stairway to Melon, apples (+1) down a dead end or a lemon (-1) on the way to the
   melon (+20, success); 525 steps, 3 actions (the paper's rules);
 - ``melon-dmlab``: the same map under DMLab's level rules: the melon puts the agent back at the
@@ -37,8 +38,9 @@ moving and picking up items as DeepMind Lab does (``simjax.envs.dmlab.pmove``):
 - ``explore-goals-paper``: the paper's wording of it: a 9x9 maze without rooms, a new start and
   a new goal after each pickup; 1350 steps, 3 actions;
 - ``melon-doom-motion``, ``melon-dmlab-doom-motion``, ``explore-goals-doom-motion`` and
-  ``explore-goals-paper-doom-motion``: the same worlds moving and touching items with Doom's
-  motion (``simjax.envs.doom.motion``, MyWayHome's), as they did before 2026-12-07
+  ``explore-goals-paper-doom-motion``: the same worlds as they were before 2026-12-07: moving
+  and touching items with Doom's motion (``simjax.envs.doom.motion``, MyWayHome's) and drawn
+  with ``raycaster``'s invented looks (``look="invented"``) instead of DMLab's
   (``simjax.config_history``: run folders written before then are read under these names),
   kept so those runs rebuild.
 
@@ -173,10 +175,10 @@ _REGISTRY: dict[str, Callable[[], MazeEnv]] = {
     "melon-dmlab": MelonLevelEnv,
     "explore-goals": ExploreGoalsEnv,
     "explore-goals-paper": ExploreGoalsPaperEnv,
-    "melon-doom-motion": lambda: melon_env(motion="doom"),
-    "melon-dmlab-doom-motion": lambda: MelonLevelEnv(motion="doom"),
-    "explore-goals-doom-motion": lambda: ExploreGoalsEnv(motion="doom"),
-    "explore-goals-paper-doom-motion": lambda: ExploreGoalsPaperEnv(motion="doom"),
+    "melon-doom-motion": lambda: melon_env(motion="doom", look="invented"),
+    "melon-dmlab-doom-motion": lambda: MelonLevelEnv(motion="doom", look="invented"),
+    "explore-goals-doom-motion": lambda: ExploreGoalsEnv(motion="doom", look="invented"),
+    "explore-goals-paper-doom-motion": lambda: ExploreGoalsPaperEnv(motion="doom", look="invented"),
 }
 
 TASK_NAMES = tuple(_REGISTRY)

@@ -6,8 +6,9 @@ motion params pick the motion: Doom's (``simjax.envs.doom.motion``, ``MotionPara
 default) or the module their ``model`` names (DeepMind Lab's ``simjax.envs.dmlab.pmove`` for its
 ``DmlabMotionParams``: 4 engine frames), and with it the pickup rule (Doom's
 ``MazeTask.touch_distance`` per axis, or the module's ``touches``: Quake's
-``BG_PlayerTouchesItem`` box). The frame is drawn as ViZDoom draws it (``doom_render``) where the
-env has a ``DoomLook``, else with the invented looks of ``raycaster``. Items give their reward
+``BG_PlayerTouchesItem`` box). The frame is drawn by ``doom_render`` where the env has a
+``DoomLook`` (ViZDoom's look for MyWayHome, DeepMind Lab's for the DMLab worlds:
+``simjax.envs.dmlab.look``), else with the invented looks of ``raycaster``. Items give their reward
 on the first touch in an episode and disappear; touching one that ``ends`` (the goal) ends the
 episode as a success (termination). Otherwise the episode is cut after ``max_steps`` agent steps
 (truncation, ``info['truncation'] == 1``, so a learner bootstraps there and not at a
@@ -74,6 +75,10 @@ class Layout(NamedTuple):
     spawns: jnp.ndarray  # (K, 2)
     line_dir: jnp.ndarray  # (S,) +1 where a wall row runs toward +x or +y (its front is on the right)
     block_origin: jnp.ndarray  # (2,) the lowest vertex coordinates: the blockmap's corner
+    # (ny, nx) int32 floor surface per square cell (cell (iy, ix) at x in [ix, ix + 1) * size,
+    # y likewise; the size is the look's ``floor_cell``), for a look that draws floors per
+    # cell (``doom_render``); None: one floor everywhere
+    floor: jnp.ndarray | None = None
 
     @staticmethod
     def build(wall_rows, item_rows, spawn_xy) -> Layout:
@@ -130,7 +135,9 @@ class MazeEnv(Env):
         light: doom_render.DoomLight = doom_render.DoomLight(),
     ):
         """``look`` None draws the layout with the invented looks of ``raycaster``; a
-        ``DoomLook`` draws it as ViZDoom does (``doom_render``), through a ``DoomCamera``.
+        ``DoomLook`` draws it with ``doom_render`` through a ``DoomCamera``: as ViZDoom does
+        (Freedoom's textures, ``build_look``) or as DeepMind Lab does (its surfaces,
+        ``simjax.envs.dmlab.look``).
         ``motion_params``: Doom's ``motion.MotionParams`` moves the player and touches items as
         ViZDoom does; params with a ``model`` (``simjax.envs.dmlab.pmove.DmlabMotionParams``)
         move it with that module's ``Pose`` and ``tic`` and touch items with its ``touches``."""
@@ -247,7 +254,8 @@ class MazeEnv(Env):
             collected = jnp.zeros((world.items.pos.shape[0],), bool)
         sprites = raycaster.Sprites(world.items.pos, world.items.look, ~collected)
         if self.look is not None:
-            return doom_render.render(world.walls, pose.pos, pose.heading, sprites, self.look, self.camera, self.light)
+            return doom_render.render(world.walls, pose.pos, pose.heading, sprites, self.look, self.camera, self.light,
+                                      floor=world.floor)
         return raycaster.render(world.walls, pose.pos, pose.heading, sprites, self.camera)
 
     def touches(self, item_pos: jnp.ndarray, pos: jnp.ndarray) -> jnp.ndarray:

@@ -13,9 +13,18 @@ _ITEM_MARKERS = {raycaster.GOAL: ("*", 220, "goal"), raycaster.APPLE: ("o", 60, 
                  raycaster.LEMON: ("o", 60, "lemon (-1)"), raycaster.MELON: ("o", 160, "melon (+20)")}
 
 
+def wall_colours(env) -> np.ndarray | None:
+    """(T, 3) the colour of each wall texture index of ``env``'s look where it has its own (a
+    DMLab look: each surface's mean colour), else None (``raycaster.TEXTURE_LOOKS``)."""
+    return getattr(getattr(env, "look", None), "wall_rgb", None)
+
+
 def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str | None = None,
-                 spawns: bool = True):
+                 spawns: bool = True, colours=None):
     """Draw ``layout`` on a matplotlib axis (made if not given) and return the axis.
+
+    Walls take ``colours[texture]`` ((T, 3), e.g. ``wall_colours(env)``), by default their
+    invented look's base colour (``raycaster.TEXTURE_LOOKS``).
 
     ``pose`` is an optional (x, y, heading) drawn as an arrow; ``trajectory`` an optional
     (K, 2) array of positions drawn as a line.
@@ -30,8 +39,10 @@ def draw_topdown(layout: Layout, ax=None, pose=None, trajectory=None, title: str
     start, end = np.asarray(layout.walls.start), np.asarray(layout.walls.end)
     tex = np.asarray(layout.walls.texture)
     standing = layout.walls.standing()
+    if colours is None:
+        colours = [look[0] for look in raycaster.TEXTURE_LOOKS]
     for (x1, y1), (x2, y2), t in zip(start[standing], end[standing], tex[standing]):
-        ax.plot([x1, x2], [y1, y2], color=raycaster.TEXTURE_LOOKS[t][0], linewidth=3, solid_capstyle="butt")
+        ax.plot([x1, x2], [y1, y2], color=tuple(float(c) for c in colours[t]), linewidth=3, solid_capstyle="butt")
     if spawns:
         xy = np.asarray(layout.spawns)
         ax.scatter(xy[:, 0], xy[:, 1], marker="x", color="tab:blue", s=25, label="spawn spots", zorder=3)

@@ -60,6 +60,7 @@ from simjax.envs import raycaster
 from simjax.envs.maze import Layout
 
 WALL, EMPTY, CONNECTOR, OUTSIDE = 0, 1, 2, 3  # text-cell states ('*', ' ', a connector, off the grid)
+MISHMASH_SIZE = 20  # walls and floors in texture_sets.MISHMASH (simjax.envs.dmlab.look.MISHMASH_WALLS, _FLOORS)
 _FAR = 1e9
 # DMLab's PathDirections order, as (d_row, d_col)
 _DIRS = ((1, 0), (-1, 0), (0, 1), (0, -1))
@@ -71,12 +72,19 @@ class DMLabMazeGenerator:
     docstring), turned into raycaster layouts: every face between an open and a walled text
     cell is a wall row.
 
-    Looks: DMLab draws a random theme per episode, rooms in one variation and corridors in
-    another (maxVariations 1), and puts a decal (a picture) on walls with probability
-    ``decal_frequency`` (factory.lua's decalFrequency 0.1). Here each maze draws two distinct
-    looks of the raycaster's twelve, one for faces of room cells and one for corridor faces,
-    and each face takes a uniformly random look instead with probability ``decal_frequency``
-    (the stand-in for a decal)."""
+    Looks (``look``): DMLab draws its maps in the theme MISHMASH (common/make_map.lua:44;
+    themes/themes.lua): every room is one variation ('A': maxVariations 1,
+    lua_maze_generation.cc:279-287) whose wall and floor are drawn once per map from MISHMASH's
+    20 walls and 20 floors (``theme:mazeVariation``), and the corridors are the default
+    variation, MISHMASH's first wall and floor (lg_style_01_wall_green, lg_style_01_floor_orange).
+    A face takes the variation of the open cell it faces. With ``look`` "dmlab" (the default)
+    each maze draws so: a wall row's texture indexes ``simjax.envs.dmlab.look.MISHMASH_WALLS``
+    and the layout's ``floor`` grid holds each cell's index into ``MISHMASH_FLOORS``. DMLab also
+    hangs pictures (decals) on about a tenth of the wall faces (decalFrequency 0.1); they are left
+    out. With "invented" (the look before 2026-12-07) each maze draws two distinct looks of the
+    raycaster's twelve, one for faces of room cells and one for corridor faces, each face taking
+    a uniformly random look instead with probability ``decal_frequency`` (the stand-in for a
+    decal), and there is no floor grid."""
 
     height: int = 11  # factory.lua mazeHeight
     width: int = 11  # factory.lua mazeWidth
@@ -89,8 +97,11 @@ class DMLabMazeGenerator:
     simplify: bool = True  # lua_maze_generation.cc default
     cell_size: float = 100.0  # lua_maze_generation.cc kGridWidth
     decal_frequency: float = 0.1  # factory.lua decalFrequency
+    look: str = "dmlab"  # "dmlab" or "invented" (the class docstring)
 
     def __post_init__(self):
+        if self.look not in ("dmlab", "invented"):
+            raise ValueError(f"look must be 'dmlab' or 'invented', got {self.look!r}")
         for name in ("height", "width", "room_min_size", "room_max_size"):
             v = getattr(self, name)
             if v < 3 or v % 2 == 0:
@@ -146,7 +157,10 @@ class DMLabMazeGenerator:
         rows = [(*s, 0) for s in segs]
         first = self.cell_centres()[1, 1]
         goal = (float(first[0]), float(first[1]), raycaster.GOAL, 10.0, False)
-        return Layout.build(rows, [goal], np.repeat(first[None], self.num_spawns, 0))
+        layout = Layout.build(rows, [goal], np.repeat(first[None], self.num_spawns, 0))
+        if self.look == "dmlab":  # the floor grid, cell (iy, ix) = text cell (height - 1 - iy, ix)
+            layout = layout._replace(floor=jnp.zeros((self.height, self.width), jnp.int32))
+        return layout
 
     # ---- the generator (JAX) ------------------------------------------------------------
     def maze(self, key: jax.Array) -> dict:
@@ -189,13 +203,21 @@ class DMLabMazeGenerator:
         a_open, b_open = open_flat[side_a], open_flat[side_b]
         standing = a_open != b_open
         in_room = jnp.where(a_open, room_flat[side_a], room_flat[side_b])
-        k_theme, k_decal, k_pick = jax.random.split(k_look, 3)
-        corridor_look = jax.random.randint(k_theme, (), 0, raycaster.NUM_TEXTURES)
-        room_look = (corridor_look + jax.random.randint(jax.random.fold_in(k_theme, 1), (), 1, raycaster.NUM_TEXTURES)
-                     ) % raycaster.NUM_TEXTURES
-        decal = jax.random.bernoulli(k_decal, self.decal_frequency, standing.shape)
-        look = jnp.where(in_room, room_look, corridor_look)
-        look = jnp.where(decal, jax.random.randint(k_pick, standing.shape, 0, raycaster.NUM_TEXTURES), look)
+        floor = None
+        if self.look == "invented":
+            k_theme, k_decal, k_pick = jax.random.split(k_look, 3)
+            corridor_look = jax.random.randint(k_theme, (), 0, raycaster.NUM_TEXTURES)
+            room_look = (corridor_look + jax.random.randint(jax.random.fold_in(k_theme, 1), (), 1, raycaster.NUM_TEXTURES)
+                         ) % raycaster.NUM_TEXTURES
+            decal = jax.random.bernoulli(k_decal, self.decal_frequency, standing.shape)
+            look = jnp.where(in_room, room_look, corridor_look)
+            look = jnp.where(decal, jax.random.randint(k_pick, standing.shape, 0, raycaster.NUM_TEXTURES), look)
+        else:  # MISHMASH: the rooms' wall and floor drawn once, the corridors' the first ones
+            k_wall, k_floor = jax.random.split(k_look)
+            room_wall = jax.random.randint(k_wall, (), 0, MISHMASH_SIZE)
+            room_floor = jax.random.randint(k_floor, (), 0, MISHMASH_SIZE)
+            look = jnp.where(in_room, room_wall, 0)
+            floor = jnp.where(m["room"], room_floor, 0).astype(jnp.int32)[::-1]  # world rows: y up
 
         walls, boxes = template.walls, template.boxes
         v_open, h_open = ~standing[walls.v_index], ~standing[walls.h_index]
@@ -211,7 +233,7 @@ class DMLabMazeGenerator:
         items = template.items._replace(pos=centres[gr, gc][None])
         sr, sc = m["spawn_cells"][:, 0], m["spawn_cells"][:, 1]
         spawns = jnp.where(m["spawn_valid"][:, None], centres[sr, sc], _FAR)
-        return template._replace(walls=walls, boxes=boxes, items=items, spawns=spawns)
+        return template._replace(walls=walls, boxes=boxes, items=items, spawns=spawns, floor=floor)
 
     # ---- steps ----------------------------------------------------------------------------
     def _rooms(self, key):

@@ -26,9 +26,17 @@
 
 ``explore-goals-paper`` (``ExploreGoalsPaperEnv``) is the paper's wording (section 3.3): a 9x9
 grid of 128-unit cells (a random spanning tree, then each remaining interior wall knocked out
-with probability ``loop_prob``, every wall a random look of the raycaster's twelve), no rooms,
+with probability ``loop_prob``, every wall a random one of MISHMASH's 20 walls), no rooms,
 the goal in a random cell, and after each pickup both the agent and the goal move to new random
 cells. Same length and reward.
+
+Looks (``look``): "dmlab" (the default) draws both as DeepMind Lab draws its generated maps
+(``simjax.envs.dmlab.look``): MISHMASH's walls and floors (``explore-goals``: the rooms in one
+drawn wall and floor, the corridors in the default ones, ``dmlab_maze.DMLabMazeGenerator``; the
+paper variant: a drawn wall per wall row, the default floor), walls 100 units high, the sky
+``lg_sky_03`` (whose faces are missing here: ``lg_sky_01`` stands in), the goal as its model.
+"invented" is the look before 2026-12-07 (the raycaster's twelve looks), kept for the
+``*-doom-motion`` tasks.
 
 Both: 3 actions {turn left, turn right, forward}, moving and touching the goal as DeepMind
 Lab does (``simjax.envs.dmlab.pmove``; ``motion="doom"`` gives the Doom motion they had before,
@@ -60,8 +68,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from simjax.envs import raycaster
+from simjax.envs.dmlab import look as dmlab_look
 from simjax.envs.dmlab import pmove
-from simjax.envs.dmlab.dmlab_maze import DMLabMazeGenerator
+from simjax.envs.dmlab.dmlab_maze import MISHMASH_SIZE, DMLabMazeGenerator
 from simjax.envs.maze import Layout, MazeEnv, MazeTask, goal_item
 
 _FAR = 1e9
@@ -123,8 +132,14 @@ class MazeGenerator:
     cells: int = 9
     cell_size: float = 128.0
     loop_prob: float = 0.1
+    # "dmlab": each wall a uniformly drawn one of MISHMASH's 20 walls
+    # (``simjax.envs.dmlab.look.MISHMASH_WALLS``); "invented" (before 2026-12-07): one of the
+    # raycaster's twelve looks
+    look: str = "dmlab"
 
     def __post_init__(self):
+        if self.look not in ("dmlab", "invented"):
+            raise ValueError(f"look must be 'dmlab' or 'invented', got {self.look!r}")
         if not 2 <= self.cells <= 32:
             raise ValueError(f"cells must be in [2, 32], got {self.cells}")
         if not 0.0 <= self.loop_prob <= 1.0:
@@ -181,7 +196,8 @@ class MazeGenerator:
         row_open = jnp.concatenate([is_open, jnp.zeros(4 * self.cells, bool)])
         v_open, h_open = row_open[walls.v_index], row_open[walls.h_index]
         walls = walls._replace(
-            texture=jax.random.randint(k_look, walls.texture.shape, 0, raycaster.NUM_TEXTURES),
+            texture=jax.random.randint(k_look, walls.texture.shape, 0,
+                                       raycaster.NUM_TEXTURES if self.look == "invented" else MISHMASH_SIZE),
             v_lo=jnp.where(v_open, _FAR, walls.v_lo), v_hi=jnp.where(v_open, -_FAR, walls.v_hi),
             h_lo=jnp.where(h_open, _FAR, walls.h_lo), h_hi=jnp.where(h_open, -_FAR, walls.h_hi),
         )
@@ -223,10 +239,15 @@ class ExploreGoalsPaperEnv(MazeEnv):
     goal after each pickup); ``MazeState.world`` holds the episode's maze."""
 
     def __init__(self, generator: MazeGenerator = MazeGenerator(), max_steps: int = 1350,
-                 goal_reward: float = 10.0, motion: str = "dmlab", **kwargs):
-        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
-        ``kwargs`` (MazeEnv's) wins."""
+                 goal_reward: float = 10.0, motion: str = "dmlab", look: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); ``look``: "dmlab" or
+        "invented" (the generator's ``look`` is set to it); a ``motion_params`` or ``camera``
+        in ``kwargs`` (MazeEnv's) wins."""
         kwargs.setdefault("motion_params", pmove.params_for(motion))
+        generator = dataclasses.replace(generator, look=dmlab_look.check_look(look))
+        if look == "dmlab":  # no floor grid: one floor, MISHMASH's first
+            kwargs.setdefault("camera", dmlab_look.CAMERA)
+            kwargs["look"] = dmlab_look.text_level_look(generator.template().walls)
         self.generator = generator
         self.goal_reward = goal_reward
         task = MazeTask("explore-goals-paper", random_heading=True, max_steps=max_steps, num_actions=3)
@@ -279,10 +300,15 @@ class ExploreGoalsEnv(MazeEnv):
     ``spawns`` the 'P' cells (slots of rooms the maze does not have sit at 1e9)."""
 
     def __init__(self, generator: DMLabMazeGenerator = DMLabMazeGenerator(), max_steps: int = 1350,
-                 goal_reward: float = 10.0, motion: str = "dmlab", **kwargs):
-        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
-        ``kwargs`` (MazeEnv's) wins."""
+                 goal_reward: float = 10.0, motion: str = "dmlab", look: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); ``look``: "dmlab" or
+        "invented" (the generator's ``look`` is set to it); a ``motion_params`` or ``camera``
+        in ``kwargs`` (MazeEnv's) wins."""
         kwargs.setdefault("motion_params", pmove.params_for(motion))
+        generator = dataclasses.replace(generator, look=dmlab_look.check_look(look))
+        if look == "dmlab":  # a floor grid of the maze's cells
+            kwargs.setdefault("camera", dmlab_look.CAMERA)
+            kwargs["look"] = dmlab_look.text_level_look(generator.template().walls, floor_cell=generator.cell_size)
         self.generator = generator
         self.goal_reward = goal_reward
         task = MazeTask("explore-goals", random_heading=True, max_steps=max_steps, num_actions=3)

@@ -36,9 +36,13 @@ a success; 525 agent steps; 3 actions {turn left, turn right, forward}. ``melon-
 pickup, restarts the level (the agent back at the start, every fruit back) without ending the
 episode (``docs/developers/reference/lua_api.md``).
 
-Looks (DMLab draws every wall with one blue texture; the stairs and fruits tell places apart):
-the south corridor brick, the apple side (east and north-east) crates, the stair corridor
-orange, the platform blue, the cliff face red.
+Looks (``look``): "dmlab" (the default) draws the map as DMLab does (``simjax.envs.dmlab.look``):
+every wall ``lg_style_01_wall_blue`` placed as its brush face places it (``FACES``), the cliff
+face and every floor ``lg_style_01_floor_orange``, the sky ``lg_sky_01`` above walls 312 units
+high (floor z = 8 to the walls' tops at 320), and the fruits as their models. "invented" is the
+look these worlds had before 2026-12-07 (``raycaster``'s looks, one per part of the ring: the
+south corridor brick, the apple side crates, the stair corridor orange, the platform blue, the
+cliff face red), kept for the ``*-doom-motion`` tasks and the runs made with them.
 """
 
 from __future__ import annotations
@@ -49,10 +53,11 @@ import jax
 import jax.numpy as jnp
 
 from simjax.envs import raycaster
+from simjax.envs.dmlab import look as dmlab_look
 from simjax.envs.dmlab import pmove
 from simjax.envs.maze import Layout, MazeEnv, MazeTask
 
-BRICK, CRATE, RED, BLUE, ORANGE = 8, 2, 5, 7, 9  # wall looks (raycaster.TEXTURE_LOOKS)
+BRICK, CRATE, RED, BLUE, ORANGE = 8, 2, 5, 7, 9  # the invented look's walls (raycaster.TEXTURE_LOOKS)
 OUTER, INNER, CLIFF_X = 512.0, 448.0, 0.0
 
 WALLS = (
@@ -81,11 +86,54 @@ MELON_XY = (-40.0, 480.0)
 APPLE_REWARD, LEMON_REWARD, MELON_REWARD = 1.0, -1.0, 20.0  # pickups.lua quantities
 
 
-def melon_layout() -> Layout:
-    """Items in order: the 14 apples, the lemon, the melon (the only one that ends)."""
+# DMLab's look: the map's surfaces, and the texture fields of the brush face each wall row is
+# (assets/maps/src/stairway_to_melon.map, by line): the outer walls (brushes 1, 3-5, e.g. l.20,
+# 38, 48, 56), the block's faces along x (brush 2, l.30, 32) and along y (l.31, 33), and the
+# platform's east face, the cliff (brush 30, l.283)
+SURFACES = ("map/lab_games/lg_style_01_wall_blue", "map/lab_games/lg_style_01_floor_orange")
+OUTER_FACE = dmlab_look.Face(SURFACES[0], 3584.0, 52.0, -0.142857, 0.19)
+BLOCK_FACE_ALONG_X = dmlab_look.Face(SURFACES[0], 3822.0, 52.0, -0.133929, 0.19)
+BLOCK_FACE_ALONG_Y = dmlab_look.Face(SURFACES[0], 3584.0, 52.0, -0.125, 0.19)
+CLIFF_FACE = dmlab_look.Face(SURFACES[1], 0.0, -128.0, 0.19, 0.19)
+FLOOR_Z, WALL_TOP = 8.0, 320.0  # brushes 15, 31, 32 (the floors' tops); the walls' and the block's tops
+
+
+def _face(row) -> dmlab_look.Face:
+    x1, y1, x2, y2 = row[:4]
+    if x1 == x2 == CLIFF_X:
+        return CLIFF_FACE
+    if max(abs(x1), abs(x2), abs(y1), abs(y2)) == OUTER and (abs(x1) == abs(x2) == OUTER or abs(y1) == abs(y2) == OUTER):
+        return OUTER_FACE
+    return BLOCK_FACE_ALONG_X if y1 == y2 else BLOCK_FACE_ALONG_Y
+
+
+FACES = tuple(_face(row) for row in WALLS)
+
+
+def melon_layout(look: str = "dmlab") -> Layout:
+    """Items in order: the 14 apples, the lemon, the melon (the only one that ends). The wall
+    rows' textures index ``SURFACES`` for the "dmlab" look, ``raycaster.TEXTURE_LOOKS`` for the
+    "invented" one."""
+    dmlab_look.check_look(look)
+    rows = WALLS if look == "invented" else [(*row[:4], SURFACES.index(f.surface)) for row, f in zip(WALLS, FACES)]
     items = [(x, y, raycaster.APPLE, APPLE_REWARD, False) for x, y in APPLES_XY]
     items += [(*LEMON_XY, raycaster.LEMON, LEMON_REWARD, False), (*MELON_XY, raycaster.MELON, MELON_REWARD, True)]
-    return Layout.build(WALLS, items, [START_XY])
+    return Layout.build(rows, items, [START_XY])
+
+
+def melon_look(layout: Layout):
+    """DMLab's look of the map (a ``melon_layout("dmlab")``): walls from floor 8 to 320, the floor
+    orange, the sky lg_sky_01 (stairway_to_melon.map brush 6; assets/scripts/lab_games.shader:2078-2090)."""
+    return dmlab_look.build_look(layout.walls, SURFACES, FACES, wall_height=WALL_TOP - FLOOR_Z, floor_z=FLOOR_Z,
+                                 floors=(SURFACES[1],), sky="map/lab_games/sky/lg_sky_01")
+
+
+def _look_kwargs(look: str, layout: Layout, kwargs: dict) -> dict:
+    """MazeEnv's look (a DoomLook, or None for the invented looks) and camera for ``look`` (a
+    ``camera`` in ``kwargs`` wins)."""
+    if look == "dmlab":
+        kwargs.setdefault("camera", dmlab_look.CAMERA)
+    return {**kwargs, "look": melon_look(layout) if look == "dmlab" else None}
 
 
 MELON_TASK = MazeTask("melon", random_heading=False, heading=START_HEADING, max_steps=525, num_actions=3)
@@ -93,11 +141,13 @@ MELON_DMLAB_TASK = MazeTask("melon-dmlab", random_heading=False, heading=START_H
 APPLES_TOTAL = APPLE_REWARD * len(APPLES_XY)
 
 
-def melon_env(motion: str = "dmlab", **kwargs) -> MazeEnv:
+def melon_env(motion: str = "dmlab", look: str = "dmlab", **kwargs) -> MazeEnv:
     """``melon``: the map under the paper's rules, moving as ``motion`` ("dmlab" or "doom",
-    ``pmove.params_for``) says; a ``motion_params`` in ``kwargs`` (MazeEnv's) wins."""
+    ``pmove.params_for``) says, drawn in ``look`` ("dmlab" or "invented", the module docstring);
+    a ``motion_params`` or ``camera`` in ``kwargs`` (MazeEnv's) wins."""
     kwargs.setdefault("motion_params", pmove.params_for(motion))
-    return MazeEnv(melon_layout(), MELON_TASK, **kwargs)
+    layout = melon_layout(look)
+    return MazeEnv(layout, MELON_TASK, **_look_kwargs(look, layout, kwargs))
 
 
 class MelonLevelEnv(MazeEnv):
@@ -107,13 +157,13 @@ class MelonLevelEnv(MazeEnv):
     when its return exceeds the apples' 14: without the melon the return is at most 14, with
     k >= 1 melons at least 20k - (k + 1) >= 18 (a lemon per level at most)."""
 
-    def __init__(self, motion: str = "dmlab", **kwargs):
-        """``motion``: "dmlab" or "doom" (``pmove.params_for``); a ``motion_params`` in
-        ``kwargs`` (MazeEnv's) wins."""
-        layout = melon_layout()
+    def __init__(self, motion: str = "dmlab", look: str = "dmlab", **kwargs):
+        """``motion``: "dmlab" or "doom" (``pmove.params_for``); ``look``: "dmlab" or
+        "invented"; a ``motion_params`` or ``camera`` in ``kwargs`` (MazeEnv's) wins."""
+        layout = melon_layout(look)
         layout = layout._replace(items=layout.items._replace(ends=jnp.zeros_like(layout.items.ends)))
         kwargs.setdefault("motion_params", pmove.params_for(motion))
-        super().__init__(layout, MELON_DMLAB_TASK, **kwargs)
+        super().__init__(layout, MELON_DMLAB_TASK, **_look_kwargs(look, layout, kwargs))
 
     def _on_touch(self, key, pose, world, collected):
         hit = collected[-1]  # the melon, the layout's last item

@@ -30,6 +30,11 @@ over, so this renderer computes the averaged frame directly, exactly where it ca
 
 Textures, palette and sprite come from Freedoom (``simjax/envs/doom/assets``, converted from the
 ``freedoom2.wad`` that ViZDoom ships by ``tools/freedoom_assets.py``).
+
+The DMLab worlds are drawn by the same code with a ``DoomLook`` of DeepMind Lab's surfaces
+(``simjax.envs.dmlab.look``): its optional fields set walls of another height and texel scale,
+a sky in place of the ceiling, floors per cell of a world's floor grid, one sprite per item
+look, and light tables of ones (no light). Their defaults are Doom's, which they leave as it was.
 """
 
 from __future__ import annotations
@@ -111,13 +116,27 @@ class DoomLook(NamedTuple):
     wall_sign: jnp.ndarray  # (S,) +1 where u grows along the row, -1 where it runs the other way
     light_rgb: jnp.ndarray  # (32, 3) colour multiplier of each light table index
     plane_rgb: jnp.ndarray  # (32, 3) mean colour of the floor and ceiling flat at each index, 0..1
-    sprite_prefix: jnp.ndarray  # (LEVELS * Wp * (Hs + 2), 4) the same for the sprite's premultiplied RGBA
+    sprite_prefix: jnp.ndarray  # (N * LEVELS * Wp * (Hs + 2), 4) the same for the sprites' premultiplied RGBA
     sprite_size: tuple  # (Wp, Hs): padded width, height
-    sprite_offset: tuple  # (leftoffset + padding, topoffset)
+    # (leftoffset + padding, topoffset) of the one sprite every item shows (Doom's), or a tuple
+    # of N of them: item look k (``raycaster.Sprites.look``) shows sprite k
+    sprite_offset: tuple
+    # the rest serve other engines' looks (``simjax.envs.dmlab.look``); the defaults are Doom's
+    wall_height: float = WALL_HEIGHT  # floor to the top of every wall, world units
+    v_scale: float = 1.0  # texel rows per world unit down a wall; wall_prefix has texel_rows(wall_height, v_scale) + 2 rows
+    sky_rgb: np.ndarray | None = None  # (181, 3) sky colour at elevations -90..90 degrees, drawn for the ceiling
+    floor_rgb: jnp.ndarray | None = None  # (F, 3) colour of each floor of a world with a floor grid
+    floor_cell: float = 0.0  # that grid's cell size, world units
+    wall_rgb: np.ndarray | None = None  # (T, 3) each texture's mean colour (for maps), 0..1
 
 
 LEVELS = 7  # box filters of 1, 2, 4, ..., 64 texel columns: a 64-wide texture's whole width
 _SPRITE_PAD = 32  # transparent columns either side of the sprite, so wide filters fade its edges
+
+
+def texel_rows(wall_height: float, v_scale: float) -> int:
+    """Texel rows from the top of a wall to the floor (128 for Doom: one a unit)."""
+    return math.ceil(wall_height * v_scale - 1e-9)
 
 
 def _box_levels(columns: np.ndarray, wrap: bool) -> np.ndarray:
@@ -138,11 +157,12 @@ def _box_levels(columns: np.ndarray, wrap: bool) -> np.ndarray:
     return np.stack(out)
 
 
-def _prefix_down(columns: np.ndarray, rows: int) -> np.ndarray:
+def _prefix_down(columns: np.ndarray, rows: int, start: int = 0) -> np.ndarray:
     """(..., rows + 2, C) prefix sums down each column of (..., H, C) texels repeated to ``rows``
-    rows, plus one repeated last entry so that a lookup at floor(t) + 1 stays inside."""
+    rows from texel row ``start``, plus one repeated last entry so that a lookup at floor(t) + 1
+    stays inside."""
     h = columns.shape[-2]
-    col = np.take(columns, np.arange(rows) % h, axis=-2).astype(np.float64)
+    col = np.take(columns, (np.arange(rows) + start) % h, axis=-2).astype(np.float64)
     zero = np.zeros_like(col[..., :1, :])
     prefix = np.concatenate([zero, np.cumsum(col, axis=-2)], axis=-2)
     return np.concatenate([prefix, prefix[..., -1:, :]], axis=-2)
@@ -199,7 +219,8 @@ def area_matrix(n_in: int, n_out: int) -> np.ndarray:
     return overlap / overlap.sum(1, keepdims=True)
 
 
-def _plane_rows(camera: DoomCamera, light: DoomLight, plane_rgb) -> tuple[np.ndarray, np.ndarray]:
+def _plane_rows(camera: DoomCamera, light: DoomLight, plane_rgb,
+                wall_height: float = WALL_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
     """(height, 3) colours of the ceiling and the floor as each output row shows them: the
     flat's mean colour at each screen row's light index, averaged over the output row's span
     of screen rows (a constant of the camera)."""
@@ -209,11 +230,38 @@ def _plane_rows(camera: DoomCamera, light: DoomLight, plane_rgb) -> tuple[np.nda
     away = np.abs(np.floor(camera.horizon + 0.5) - rows)
     ry = area_matrix(camera.screen_height, camera.height)
     out = []
-    for h, side in ((WALL_HEIGHT - camera.eye_height, centre < 0), (camera.eye_height, centre > 0)):
+    for h, side in ((wall_height - camera.eye_height, centre < 0), (camera.eye_height, centre > 0)):
         k = light_index(light.plane_shade, light.plane_vis * away / h, light.max_vis, xp=np)
         w = ry * side[None, :]
         out.append((w @ np.asarray(plane_rgb)[k]) / np.maximum(w.sum(1, keepdims=True), 1e-9))
     return out[0], out[1]
+
+
+def _sky_rows(camera: DoomCamera, sky_rgb) -> np.ndarray:
+    """(height, 3) the sky each output row shows: per screen row the colour of ``sky_rgb`` (one
+    per degree of elevation, -90..90) at the elevation of the row's centre, linearly
+    interpolated, averaged over the output row's span of screen rows (a constant of the camera;
+    the sky is at infinity and the same round the horizon)."""
+    rows = np.arange(camera.screen_height)
+    elevation = np.degrees(np.arctan2(camera.horizon - (rows + 0.5), camera.focal_y))
+    table = np.asarray(sky_rgb, np.float64)
+    grid = np.arange(-90.0, 91.0)
+    per_row = np.stack([np.interp(elevation, grid, table[:, c]) for c in range(3)], -1)
+    return area_matrix(camera.screen_height, camera.height) @ per_row
+
+
+def _floor_cells(floor, floor_rgb, cell: float, pos, rays, eye, camera: DoomCamera):
+    """(W, R, 3) the floor colour each output pixel shows where the world has a floor grid
+    (``floor`` (ny, nx) int: cell (iy, ix) covers x in [ix, ix + 1) * cell, y in [iy, iy + 1) *
+    cell): the colour of the cell under the point the pixel's centre sees on the floor."""
+    fy, dy = camera.focal_y, camera.screen_height / camera.height
+    below = jnp.asarray((np.arange(camera.height) + 0.5) * dy - camera.horizon, jnp.float32)  # (R,)
+    dist = eye * fy / jnp.maximum(below, 1e-3)  # perpendicular distance of the floor point
+    point = pos[None, None, :] + dist[None, :, None] * rays[:, None, :]  # (W, R, 2)
+    ny, nx = floor.shape
+    ix = jnp.clip(jnp.floor(point[..., 0] / cell).astype(jnp.int32), 0, nx - 1)
+    iy = jnp.clip(jnp.floor(point[..., 1] / cell).astype(jnp.int32), 0, ny - 1)
+    return floor_rgb[floor[iy, ix]]
 
 
 def _row_edges(camera: DoomCamera) -> np.ndarray:
@@ -221,11 +269,12 @@ def _row_edges(camera: DoomCamera) -> np.ndarray:
     return np.arange(camera.height + 1) * camera.screen_height / camera.height - camera.horizon
 
 
-def _lerp_prefix(prefix, base, t, limit):
+def _lerp_prefix(prefix, base, t, limit, rows=None):
     """Prefix sums read at fractional positions ``t`` (clipped to [0, limit]): exact integrals of
-    piecewise-constant texels. ``base`` indexes each column's first entry in ``prefix``."""
+    piecewise-constant texels. ``base`` indexes each column's first entry in ``prefix``, which
+    holds ``rows`` texels (default ``limit``) before its two extra entries."""
     t = jnp.clip(t, 0.0, limit)
-    i = jnp.minimum(jnp.floor(t), limit - 1).astype(jnp.int32)
+    i = jnp.minimum(jnp.floor(t), (limit if rows is None else rows) - 1).astype(jnp.int32)
     frac = (t - i)[..., None]
     # the barrier keeps XLA from fusing the index arithmetic into the gathers, where it is
     # recomputed per gathered element (1.6x slower measured)
@@ -249,9 +298,13 @@ def render(
     camera: DoomCamera = DoomCamera(),
     light: DoomLight = DoomLight(),
     eye_height=None,
+    floor=None,
 ) -> jnp.ndarray:
     """The 42x42 RGB uint8 frame of ViZDoom's 160x120 screen at (pos, heading), area-averaged.
     ``eye_height`` (traced, optional) overrides the camera's, e.g. for Doom's view bob.
+    ``floor`` (optional, a world's floor grid, for a look with ``floor_rgb``): floor pixels
+    take the colour of the grid cell they see, instead of one colour per row. A look with
+    ``sky_rgb`` draws that sky where Doom draws the ceiling.
 
     One ray per output column, through its centre. The screen columns an output column
     averages show texel columns across a footprint of ``du`` texels (the change of u to the
@@ -266,12 +319,16 @@ def render(
     depth, wall, u = raycaster.cast_rays_along(walls, pos, rays)
     depth = jnp.maximum(depth, 1.0)
 
-    # walls: per column, the filtered texture column and its light
+    # walls: per column, the filtered texture column and its light. u_doom in texels:
+    # wall_sign is +-1 for Doom's one texel a unit, +-texels a unit for other looks
+    height, v_scale = look.wall_height, look.v_scale
+    texels = texel_rows(height, v_scale)
     tex = walls.texture[wall]
-    u_doom = look.wall_offset[wall] + look.wall_sign[wall] * u
+    sign = look.wall_sign[wall]
+    u_doom = look.wall_offset[wall] + sign * u
     tu = jnp.mod(jnp.floor(u_doom).astype(jnp.int32), look.tex_width[tex])
-    level = _level(raycaster._footprint_along(u, wall, depth * per_column / f))
-    rows = int(WALL_HEIGHT) + 2
+    level = _level(raycaster._footprint_along(u, wall, depth * per_column / f) * jnp.abs(sign))
+    rows = texels + 2
     base = (level * look.tex_columns + look.tex_start[tex] + tu) * rows
     e = walls.end[wall] - walls.start[wall]
     along_x = jnp.abs(e[:, 0]) > jnp.abs(e[:, 1])
@@ -281,15 +338,22 @@ def render(
     # per column and output row edge: the wall height seen, as a texel row from the top
     y_edge = jnp.asarray(_row_edges(camera), jnp.float32)  # (R + 1,)
     z = eye - y_edge[None, :] * (depth / fy)[:, None]  # (W, R + 1)
-    cum = _lerp_prefix(look.wall_prefix, base[:, None], WALL_HEIGHT - z, WALL_HEIGHT)  # (W, R + 1, 3)
-    wall_rgb = (cum[:, 1:] - cum[:, :-1]) * (lit * (fy / depth / dy)[:, None])[:, None, :]  # (W, R, 3)
-    y_top = (eye - WALL_HEIGHT) * fy / depth  # screen rows above this show the ceiling
+    cum = _lerp_prefix(look.wall_prefix, base[:, None], (height - z) * v_scale, height * v_scale,
+                       texels)  # (W, R + 1, 3)
+    wall_rgb = (cum[:, 1:] - cum[:, :-1]) * (lit * (fy / depth / dy / v_scale)[:, None])[:, None, :]  # (W, R, 3)
+    y_top = (eye - height) * fy / depth  # screen rows above this show the ceiling
     y_bot = eye * fy / depth  # below this, the floor
     lo, hi = y_edge[None, :-1], y_edge[None, 1:]
     ceil_share = jnp.clip(jnp.minimum(hi, y_top[:, None]) - lo, 0.0, dy) / dy  # (W, R)
     floor_share = jnp.clip(hi - jnp.maximum(lo, y_bot[:, None]), 0.0, dy) / dy
-    ceil_rgb, floor_rgb = (jnp.asarray(x, jnp.float32) for x in _plane_rows(camera, light, look.plane_rgb))
-    rgb = wall_rgb + ceil_share[..., None] * ceil_rgb[None] + floor_share[..., None] * floor_rgb[None]
+    ceil_rgb, floor_rgb = (jnp.asarray(x, jnp.float32) for x in _plane_rows(camera, light, look.plane_rgb, height))
+    if look.sky_rgb is not None:
+        ceil_rgb = jnp.asarray(_sky_rows(camera, look.sky_rgb), jnp.float32)
+    if floor is not None and look.floor_rgb is not None:
+        floor_px = _floor_cells(floor, look.floor_rgb, look.floor_cell, pos, rays, eye, camera)  # (W, R, 3)
+        rgb = wall_rgb + ceil_share[..., None] * ceil_rgb[None] + floor_share[..., None] * floor_px
+    else:
+        rgb = wall_rgb + ceil_share[..., None] * ceil_rgb[None] + floor_share[..., None] * floor_rgb[None]
 
     rgb = _draw_sprites(rgb, depth, pos, heading, eye, sprites, look, camera, light)
     return jnp.round(jnp.clip(rgb.transpose(1, 0, 2), 0.0, 1.0) * 255.0).astype(jnp.uint8)
@@ -304,7 +368,13 @@ def _draw_sprites(rgb, depth, pos, heading, eye, sprites: raycaster.Sprites, loo
     f, fy, dy = camera.focal, camera.focal_y, camera.screen_height / camera.height
     per_column = camera.screen_width / camera.width
     wp, hs = look.sprite_size
-    left, top = look.sprite_offset
+    several = isinstance(look.sprite_offset[0], (tuple, list))
+    if several:  # item look k shows sprite k
+        offsets = np.asarray(look.sprite_offset, np.float32)
+        sid = jnp.clip(sprites.look, 0, offsets.shape[0] - 1)  # (K,)
+        left, top = jnp.asarray(offsets[:, 0])[sid][:, None], jnp.asarray(offsets[:, 1])[sid][:, None]
+    else:
+        left, top = look.sprite_offset
     forward = jnp.stack([jnp.cos(heading), jnp.sin(heading)])
     right = jnp.stack([jnp.sin(heading), -jnp.cos(heading)])
     rel = sprites.pos - pos[None, :]  # (K, 2)
@@ -318,7 +388,10 @@ def _draw_sprites(rgb, depth, pos, heading, eye, sprites: raycaster.Sprites, loo
     level = _level(s_near * per_column / f)  # (K,)
     y_edge = jnp.asarray(_row_edges(camera), jnp.float32)
     z = eye - y_edge[None, :] * (s_near / fy)[:, None]  # (K, R + 1)
-    base = (level[:, None] * wp + jnp.clip(col, 0, wp - 1)) * (hs + 2)  # (K, W)
+    if several:
+        base = ((sid[:, None] * LEVELS + level[:, None]) * wp + jnp.clip(col, 0, wp - 1)) * (hs + 2)  # (K, W)
+    else:
+        base = (level[:, None] * wp + jnp.clip(col, 0, wp - 1)) * (hs + 2)  # (K, W)
     cum = _lerp_prefix(look.sprite_prefix, base[:, :, None], (top - z)[:, None, :], float(hs))  # (K, W, R + 1, 4)
     lit = look.light_rgb[light_index(light.sprite_shade, light.vis / s_near, light.max_vis)]  # (K, 3)
     cover = (cum[:, :, 1:] - cum[:, :, :-1]) * (fy / s_near / dy)[:, None, None, None]  # (K, W, R, 4)
