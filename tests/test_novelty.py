@@ -1,5 +1,7 @@
 """The novelty models: sequence windows, shapes, training signal, ablation switches, normalisation."""
 
+import functools
+
 import chex
 import jax
 import jax.numpy as jnp
@@ -211,13 +213,22 @@ def test_frames_of_an_earlier_episode_never_change_the_new_episodes_scores(frame
 
 # ---------------------------------------------------------------- ablation switches
 
-def _param_shapes(model, batch):
-    obs, reset, actions, last_obs, last_reset = batch
-    memory = init_memory(model.history, obs.shape[1], obs.shape[2:])
-    tl, _ = build_timeline(memory, obs, reset, actions, last_obs, last_reset)
-    x = normalize_frames(tl.frames, None)
-    params = model.init(jax.random.PRNGKey(3), tl, x)
-    return params, tl, x
+@functools.cache
+def _init_and_apply(model):
+    """The model's params and its output on a batch, as one compiled program per model (op by
+    op, each op would compile a program of its own): batch -> (params, (error, scored, loss,
+    metrics))."""
+
+    @jax.jit
+    def run(batch):
+        obs, reset, actions, last_obs, last_reset = batch
+        memory = init_memory(model.history, obs.shape[1], obs.shape[2:])
+        tl, _ = build_timeline(memory, obs, reset, actions, last_obs, last_reset)
+        x = normalize_frames(tl.frames, None)
+        params = model.init(jax.random.PRNGKey(3), tl, x)
+        return params, model.apply(params, tl, x)
+
+    return run
 
 
 def _flat(tree):
@@ -234,20 +245,20 @@ def _flat(tree):
 def test_each_ablation_switch_changes_only_its_part(switch, changed, frames):
     base = SIM(A, obs_len=3, act_len=2)
     ablated = SIM(A, obs_len=3, act_len=2, **switch)
-    p_base, tl, x = _param_shapes(base, frames["seen"])
-    p_abl, _, _ = _param_shapes(ablated, frames["seen"])
+    p_base, (error_base, scored, _, m_base) = jax.device_get(_init_and_apply(base)(frames["seen"]))
+    p_abl, (error_abl, scored_abl, _, m_abl) = jax.device_get(_init_and_apply(ablated)(frames["seen"]))
     flat_base, flat_abl = _flat(p_base), _flat(p_abl)
     differing = {k for k in flat_base.keys() | flat_abl.keys()
                  if k not in flat_base or k not in flat_abl or flat_base[k].shape != flat_abl[k].shape
                  or not np.array_equal(flat_base[k], flat_abl[k])}
     touched = {part for k in differing for part in changed if f"'{part}'" in k}
     assert touched and all(any(f"'{part}'" in k for part in changed) for k in differing), differing
-    error_base, scored, _, m_base = base.apply(p_base, tl, x)
-    error_abl, scored_abl, _, m_abl = ablated.apply(p_abl, tl, x)
     np.testing.assert_array_equal(scored, scored_abl)  # masks are not part of any ablation
     if switch == dict(inverse=False):
-        # same parameters otherwise: the novelty is identical, only the inverse loss is gone
-        np.testing.assert_allclose(error_base, error_abl, rtol=1e-6)
+        # same parameters otherwise: the novelty is the same, only the inverse loss is gone. The
+        # two compiled programs may order a sum differently; the longest is the forward layer's
+        # 768 inputs, so 768 u = 4.6e-5 relative bounds the difference
+        np.testing.assert_allclose(error_base, error_abl, rtol=1e-4)
         assert float(m_abl["inverse_loss"]) == 0.0 and float(m_base["inverse_loss"]) > 0.0
     else:
         assert not np.allclose(error_base, error_abl)
