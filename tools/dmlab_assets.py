@@ -65,6 +65,8 @@ import subprocess
 
 import numpy as np
 
+from simjax.envs.dmlab.look import MISHMASH_FLOORS, MISHMASH_WALLS
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_OUT = os.path.join(REPO, "simjax", "envs", "dmlab", "assets", "dmlab_looks.npz")
 DEFAULT_LAB = "/work/.mirror/google-deepmind+lab/repo"
@@ -76,19 +78,7 @@ FULL = 1024
 SAMPLES = 8  # model rasterisation samples per world unit, each way
 ITEM_BASE = 15.0 + 4.0  # the model's origin above the floor (see the module docstring)
 
-# MISHMASH (game_scripts/themes/texture_sets.lua:22-68), in its order: 20 floors, 20 walls
-MISHMASH_FLOORS = tuple(f"map/lab_games/lg_style_{s}" for s in (
-    "01_floor_orange", "01_floor_orange_bright", "01_floor_blue", "01_floor_blue_bright",
-    "02_floor_blue", "02_floor_blue_bright", "02_floor_green", "02_floor_green_bright",
-    "03_floor_green", "03_floor_green_bright", "03_floor_blue", "03_floor_blue_bright",
-    "04_floor_blue", "04_floor_blue_bright", "04_floor_orange", "04_floor_orange_bright",
-    "05_floor_blue", "05_floor_blue_bright", "05_floor_orange", "05_floor_orange_bright"))
-MISHMASH_WALLS = tuple(f"map/lab_games/lg_style_{s}" for s in (
-    "01_wall_green", "01_wall_green_bright", "01_wall_red", "01_wall_red_bright",
-    "02_wall_yellow", "02_wall_yellow_bright", "02_wall_blue", "02_wall_blue_bright",
-    "03_wall_orange", "03_wall_orange_bright", "03_wall_gray", "03_wall_gray_bright",
-    "04_wall_green", "04_wall_green_bright", "04_wall_red", "04_wall_red_bright",
-    "05_wall_red", "05_wall_red_bright", "05_wall_yellow", "05_wall_yellow_bright"))
+# MISHMASH's 20 floors and 20 walls, in the order the envs index them (one list, the package's)
 # stairway_to_melon.map: its walls, and its floor (which also faces the cliff and the risers)
 MELON_SURFACES = ("map/lab_games/lg_style_01_wall_blue",)
 SURFACES = MISHMASH_FLOORS + MISHMASH_WALLS + MELON_SURFACES
