@@ -15,9 +15,9 @@ from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig
 from simjax.envs import make
-from simjax.novelty import E3B, E3BSIM, SIM, Novelty, NoveltySettings, check_observation
+from simjax.novelty import E3B, E3BSIM, SIM, Novelty, NoveltySettings, RunningMeanStd, check_observation
 from simjax.novelty.e3b import E3BState
-from simjax.novelty.e3b_sim import CLIP, fold_in, multiplier
+from simjax.novelty.e3b_sim import CLIP, multiplier
 from simjax.runs.grid import check_sweep
 
 A = 4
@@ -33,13 +33,14 @@ def test_running_statistics_are_those_of_every_scored_error_so_far():
     batches = [rng.gamma(2.0, 0.3, (8, 3)).astype(np.float32) for _ in range(3)]
     masks = [rng.random((8, 3)) < 0.7 for _ in range(3)]
     masks[1][:] = False  # a rollout in which SIM scores nothing
-    fold = jax.jit(fold_in)
-    mean, var, count = jnp.float32(0.0), jnp.float32(1.0), jnp.float32(0.0)
+    fold = jax.jit(RunningMeanStd.update)
+    stats = RunningMeanStd.create()
     for x, m in zip(batches, masks):
-        before = (mean, var, count)
-        mean, var, count = fold(mean, var, count, x, m)
+        before = stats
+        stats = fold(stats, x, m)
         if not m.any():
-            chex.assert_trees_all_equal((mean, var, count), before)
+            chex.assert_trees_all_equal(stats, before)
+    mean, var, count = stats
     every = np.concatenate([x[m] for x, m in zip(batches, masks)]).astype(np.float64)
     assert float(count) == len(every)
     np.testing.assert_allclose(float(mean), every.mean(), rtol=1e-5)

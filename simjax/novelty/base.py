@@ -113,16 +113,24 @@ class RunningMeanStd(NamedTuple):
     def create(shape=()) -> RunningMeanStd:
         return RunningMeanStd(jnp.zeros(shape, jnp.float32), jnp.ones(shape, jnp.float32), jnp.zeros((), jnp.float32))
 
-    def update(self, batch: jnp.ndarray) -> RunningMeanStd:
-        """Fold in ``batch`` (..., *shape): every leading axis is a sample axis."""
+    def update(self, batch: jnp.ndarray, mask: jnp.ndarray | None = None) -> RunningMeanStd:
+        """Fold in ``batch`` (..., *shape): every leading axis is a sample axis. With ``mask`` (the
+        leading axes' shape), only the samples where it is true; a batch with none changes nothing."""
         x = batch.astype(jnp.float32).reshape((-1,) + self.mean.shape)
-        n = jnp.float32(x.shape[0])
-        b_mean, b_var = jnp.mean(x, axis=0), jnp.var(x, axis=0)
+        if mask is None:
+            n = jnp.float32(x.shape[0])
+            b_mean, b_var = jnp.mean(x, axis=0), jnp.var(x, axis=0)
+        else:
+            w = mask.astype(jnp.float32).reshape((-1,) + (1,) * self.mean.ndim)
+            n = jnp.sum(w)
+            b_mean = jnp.sum(x * w, axis=0) / jnp.maximum(n, 1.0)
+            b_var = jnp.sum(w * (x - b_mean) ** 2, axis=0) / jnp.maximum(n, 1.0)
         total = self.count + n
+        safe = jnp.maximum(total, 1.0)  # total itself whenever a sample has been folded in
         delta = b_mean - self.mean
-        mean = self.mean + delta * n / total
-        m2 = self.var * self.count + b_var * n + delta**2 * self.count * n / total
-        return RunningMeanStd(mean, m2 / total, total)
+        mean = self.mean + delta * n / safe
+        m2 = self.var * self.count + b_var * n + delta**2 * self.count * n / safe
+        return RunningMeanStd(mean, jnp.where(total > 0, m2 / safe, self.var), total)
 
 
 def normalize_frames(frames: jnp.ndarray, stats: RunningMeanStd | None) -> jnp.ndarray:

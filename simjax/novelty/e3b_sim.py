@@ -29,7 +29,7 @@ from typing import ClassVar, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from simjax.novelty.base import Timeline
+from simjax.novelty.base import RunningMeanStd, Timeline
 from simjax.novelty.e3b import E3B, E3BState
 from simjax.novelty.models import SIM
 
@@ -43,23 +43,6 @@ class E3BSIMState(NamedTuple):
     error_mean: jnp.ndarray  # (N,) float32
     error_var: jnp.ndarray  # (N,) float32
     error_count: jnp.ndarray  # (N,) float32, transitions folded in
-
-
-def fold_in(mean, var, count, x: jnp.ndarray, mask: jnp.ndarray):
-    """Running (mean, var, count) with the masked samples ``x`` folded in (Chan et al.'s parallel
-    update; nothing changes where ``mask`` is all false)."""
-    w = mask.astype(jnp.float32)
-    x = x.astype(jnp.float32)
-    n = jnp.sum(w)
-    b_mean = jnp.sum(x * w) / jnp.maximum(n, 1.0)
-    b_var = jnp.sum(w * (x - b_mean) ** 2) / jnp.maximum(n, 1.0)
-    total = count + n
-    delta = b_mean - mean
-    share = n / jnp.maximum(total, 1.0)
-    new_mean = mean + delta * share
-    m2 = var * count + b_var * n + delta**2 * count * share
-    new_var = jnp.where(total > 0, m2 / jnp.maximum(total, 1.0), var)
-    return new_mean, new_var, total
 
 
 def multiplier(error: jnp.ndarray, mean, var) -> jnp.ndarray:
@@ -101,7 +84,7 @@ class E3BSIM:
             params["e3b"], E3BState(state.cov_inverse), tl, x, hyper, **extra)
         error, sim_scored, sim_loss, sim_metrics = self.sim.apply(params["sim"], tl, x, hyper, **extra)
         error = jax.lax.stop_gradient(error).astype(jnp.float32)
-        fold = jax.vmap(lambda m, v, c: fold_in(m, v, c, error, sim_scored))
+        fold = jax.vmap(lambda m, v, c: RunningMeanStd(m, v, c).update(error, sim_scored))
         mean, var, count = fold(state.error_mean, state.error_var, state.error_count)
         # every copy holds the same numbers: read the first (the copies of one actor under A3C)
         # SIM scores no transition whose window reaches before the episode (its first L): those
