@@ -411,40 +411,47 @@ def remove_dead_ends(grid: jnp.ndarray) -> jnp.ndarray:
     return jax.lax.while_loop(cond, body, (grid, jnp.bool_(True)))[0]
 
 
-def _bend_rules(max_size: int):
-    """RemoveHorseshoeBendAtPos's conditions as (u, v, state, active(size)): for bends up to
-    ``max_size``, the cell at pos + u * u_dir + v * v_dir must hold ``state`` where
-    ``active(size)`` (a traced size) is true. With ``s`` the size:
-    (u, 0) and (u, -1) wall for u in [0, s); (u, 1) empty and (u, 2) wall for u in [-1, s];
-    (-2, 1) and (s + 1, 1) wall; (-1, 0) and (s, 0) empty."""
-    rules = [(-2, 1, WALL, lambda s: True), (-1, 0, EMPTY, lambda s: True)]
+@functools.cache
+def _bend_rules(max_size: int) -> np.ndarray:
+    """RemoveHorseshoeBendAtPos's conditions as rows (u, v, state, lo, hi): for bends up to
+    ``max_size``, the cell at pos + u * u_dir + v * v_dir must hold ``state`` where the size
+    ``s`` has lo <= s <= hi. With ``s`` the size: (u, 0) and (u, -1) wall for u in [0, s);
+    (u, 1) empty and (u, 2) wall for u in [-1, s]; (-2, 1) and (s + 1, 1) wall; (-1, 0) and
+    (s, 0) empty."""
+    every = (0, max_size)
+    rules = [(-2, 1, WALL, *every), (-1, 0, EMPTY, *every)]
     for u in range(-1, max_size + 2):
         if u >= 0:
-            rules += [(u, 0, WALL, lambda s, u=u: u < s), (u, -1, WALL, lambda s, u=u: u < s)]
-        rules += [(u, 1, EMPTY, lambda s, u=u: u <= s), (u, 2, WALL, lambda s, u=u: u <= s)]
+            rules += [(u, 0, WALL, u + 1, max_size), (u, -1, WALL, u + 1, max_size)]
+        rules += [(u, 1, EMPTY, u, max_size), (u, 2, WALL, u, max_size)]
         if u >= 2:
-            rules.append((u, 1, WALL, lambda s, u=u: u == s + 1))
+            rules.append((u, 1, WALL, u - 1, u - 1))
         if u >= 1:
-            rules.append((u, 0, EMPTY, lambda s, u=u: u == s))
-    return rules
+            rules.append((u, 0, EMPTY, u, u))
+    return np.asarray(rules, np.int32)
 
 
 def bend_matches(grid: jnp.ndarray, size) -> jnp.ndarray:
     """(4, H, W) bool: where a horseshoe bend of ``size`` (may be traced, 1 <= size <= W - 4)
-    has its mouth, per direction in DMLab's order; ``pos`` is the wall cell at the mouth."""
+    has its mouth, per direction in DMLab's order; ``pos`` is the wall cell at the mouth.
+
+    Every rule of every direction is one gather of the padded grid (4 x rules, H, W): one
+    operation, not one slice per rule, which XLA:CPU compiles in a fraction of the time."""
     h, w = grid.shape
     max_size = w - 4
     pad = max_size + 3
     p = jnp.pad(grid, pad, constant_values=OUTSIDE)
-    out = []
-    for vr, vc in _DIRS:
-        ur, uc = vc, -vr  # u_dir = {v_dir.d_col, -v_dir.d_row}
-        ok = jnp.ones((h, w), bool)
-        for u, v, state, active in _bend_rules(max_size):
-            cell = _shift(p, pad, u * ur + v * vr, u * uc + v * vc, (h, w))
-            ok = ok & (~active(size) | (cell == state))
-        out.append(ok)
-    return jnp.stack(out)
+    rules = _bend_rules(max_size)
+    u, v = rules[:, 0], rules[:, 1]
+    dirs = np.asarray(_DIRS)  # v_dir per direction; u_dir = {v_dir.d_col, -v_dir.d_row}
+    dr = u[None] * dirs[:, 1:2] + v[None] * dirs[:, 0:1]  # (4, R)
+    dc = -u[None] * dirs[:, 0:1] + v[None] * dirs[:, 1:2]
+    rows = pad + dr[..., None, None] + np.arange(h)[:, None]  # (4, R, H, 1)
+    cols = pad + dc[..., None, None] + np.arange(w)[None, :]  # (4, R, 1, W)
+    cells = p[rows, cols]  # (4, R, H, W)
+    active = (rules[:, 3] <= size) & (size <= rules[:, 4])  # (R,)
+    ok = ~active[:, None, None] | (cells == jnp.asarray(rules[:, 2], grid.dtype)[:, None, None])
+    return ok.all(axis=1)
 
 
 def _pull(grid, pos, d, size):
