@@ -77,8 +77,10 @@ class WindowLSTM(nn.Module):
         self.input = Dense(4 * self.hidden, use_bias=False, name="input")
 
         def gate_blocks(key, shape, dtype=jnp.float32):
-            init = orthogonal()
-            return jnp.concatenate([init(k, (shape[0], self.hidden), dtype) for k in jax.random.split(key, 4)], axis=1)
+            # the four blocks drawn by one mapped draw (orthogonal's vmap maps member by member):
+            # the values of four calls, compiled once
+            blocks = jax.vmap(lambda k: orthogonal()(k, (shape[0], self.hidden), dtype))(jax.random.split(key, 4))
+            return jnp.moveaxis(blocks, 0, 1).reshape(shape[0], 4 * self.hidden)
 
         self.recurrent = self.param("recurrent", gate_blocks, (self.hidden, 4 * self.hidden))
         self.bias = self.param("bias", nn.initializers.zeros, (4 * self.hidden,))
