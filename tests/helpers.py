@@ -50,3 +50,20 @@ def _random_rollout(env, key, T, N, num_actions):
 
     state, (obs, reset) = jax.lax.scan(step, state, actions)
     return obs, reset, actions, state.obs, state.done > 0
+
+
+def one_chunk(config, sweep=None):
+    """``config``'s trainer, its members' first runner, and the runner and row after one chunk,
+    by a run's own programs (``runs.training.member_programs`` at the config's precision): a test
+    shares them with any run of the same settings through the session's compilation cache."""
+    from simjax import runtime
+    from simjax.agents import make_trainer
+    from simjax.runs.grid import batch_inputs, grid_of
+    from simjax.runs.training import member_programs
+
+    trainer = make_trainer(config)
+    init, chunk = member_programs(trainer)
+    with runtime.matmul_precision(config.precision):
+        runner = init(*batch_inputs(config, grid_of(sweep or {})))
+        after, row = chunk(runner)
+    return trainer, runner, after, row

@@ -10,13 +10,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from flax import serialization
-from helpers import RND_TINY
+from helpers import RND_TINY, one_chunk
 
 from simjax import runs
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer, n_step_returns, summarize, total_reward
 from simjax.agents.a2c import Transition, a2c_loss
 from simjax.envs import make
+from simjax.runs import training
 from simjax.runs.grid import batch_inputs, grid_of
 from simjax.runs.progress import Progress
 
@@ -74,19 +75,6 @@ def test_a_non_episodic_bonus_return_runs_on_past_the_goal():
     adv = np.array([2 * 0.25 + 2.25, 2 * 1.0 + 2.5, 2 * 0.0 + 3.0])
     np.testing.assert_allclose(info["policy_loss"], np.log(3) * adv.mean(), rtol=1e-6)
     np.testing.assert_allclose(info["value_loss"], np.mean([0.25**2 + 2.25**2, 1 + 2.5**2, 9.0]), rtol=1e-6)
-
-
-def test_a_non_episodic_bonus_trains_its_own_value_head():
-    config = _tiny_config(algo="rnd", num_envs=2, rollout_len=4, total_steps=16, log_every=16, bonus_episodic=False)
-    trainer = make_trainer(config)
-    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0))
-    after, metrics = jax.jit(trainer.run_chunk)(runner)
-    chex.assert_tree_all_finite((after.params, metrics))
-    before, moved = runner.params["policy"]["params"], after.params["policy"]["params"]
-    chex.assert_shape(before["IntrinsicValue"]["kernel"], (256, 1))
-    assert not np.array_equal(before["IntrinsicValue"]["kernel"], moved["IntrinsicValue"]["kernel"])
-    one_head = jax.eval_shape(make_trainer(dataclasses.replace(config, bonus_episodic=True)).init, jax.random.PRNGKey(0))
-    assert set(before) - set(one_head.params["policy"]["params"]) == {"IntrinsicValue"}  # old checkpoints load
 
 
 def test_reward_seam():
@@ -246,6 +234,7 @@ def test_a2c_learns_the_tiny_task_and_writes_a_run_folder(tmp_path):
     assert (out / "curve.png").stat().st_size > 10_000
 
 
+@pytest.mark.xdist_group("rnd_tiny_run")  # helpers.RND_TINY: the programs of the fork's source run
 def test_a_stopped_run_keeps_what_it_wrote(tmp_path, monkeypatch):
     calls = []
 
@@ -254,11 +243,11 @@ def test_a_stopped_run_keeps_what_it_wrote(tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(Progress, "update", stop_after_first)
-    out = runs.run(_tiny_config(total_steps=400), tmp_path / "run")
+    out = runs.run(TrainConfig(**RND_TINY, total_steps=40), tmp_path / "run")
     rows = list(csv.DictReader(open(out / "metrics.csv")))
-    assert len(calls) == 1 and len(rows) == 1 and int(rows[0]["env_steps"]) == 40
+    assert len(calls) == 1 and [(int(r["env_steps"]), int(r["seed"])) for r in rows] == [(20, 0), (20, 1)]
     ckpt = serialization.msgpack_restore((out / "checkpoint.msgpack").read_bytes())
-    assert ckpt["env_steps"] == 40
+    assert ckpt["env_steps"] == 20
     assert (out / "curve.png").exists() and not list(out.glob("*.tmp"))
 
 
@@ -340,20 +329,23 @@ def test_a_damaged_checkpoint_is_a_one_line_error_naming_its_file(tmp_path, caps
         assert f"{tmp_path / 'checkpoint.msgpack'} is damaged" in message and "Traceback" not in message
 
 
-@pytest.mark.parametrize("algo", ["sim", "rnd", "icm"])
+@pytest.mark.parametrize("algo", [pytest.param("sim", marks=pytest.mark.xdist_group("sim_tiny_run")), "rnd", "icm"])
 def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
     config = _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2)
-    trainer = make_trainer(config)
-    runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())  # traced: a program for any values
-    after, metrics = jax.jit(trainer.run_chunk)(runner)
-    chex.assert_tree_all_finite((after.params, metrics))
+    if algo == "sim":  # SIM_TINY: the run's own programs, which the resumed-run test compiles too
+        _, runner, after, metrics = one_chunk(config)
+    else:
+        trainer = make_trainer(config)
+        runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())  # traced: a program for any values
+        after, metrics = jax.jit(trainer.run_chunk)(runner)
+    chex.assert_tree_all_finite((after.params, {k: metrics[k] for k in training.FINITE_TERMS}))
     before_p, after_p = runner.params, after.params
     for part in ("policy", "novelty"):  # both trained by the one optimiser
         moved = [not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(before_p[part]), jax.tree.leaves(after_p[part]))]
         assert sum(moved) > len(moved) // 2, part
     if "target" in before_p["novelty"]:
         chex.assert_trees_all_equal(before_p["novelty"]["target"], after_p["novelty"]["target"])
-    assert float(metrics["bonus_mean"]) > 0.0 and float(metrics["forward_loss"]) > 0.0
+    assert np.all(metrics["bonus_mean"] > 0.0) and np.all(metrics["forward_loss"] > 0.0)
     assert bool(after.novelty.memory.valid.all())  # 8 steps filled the memory of every env
 
 
@@ -375,12 +367,12 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
     chex.assert_trees_all_close(a2c, rnd, atol=1e-6, rtol=0)
 
 
+@pytest.mark.xdist_group("sim_tiny_run")  # its programs are the SIM novelty learner test's
 def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     """Stopped by Ctrl-C between checkpoints (it saves then), or killed with rows written after
     its last checkpoint (they are dropped and trained again): resumed, it is the whole run."""
     import shutil
 
-    from simjax.runs import training
 
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
     written = []  # the steps of each checkpoint written
@@ -448,6 +440,14 @@ def test_a_fork_goes_on_from_its_source_with_the_changed_settings(tmp_path, caps
     np.testing.assert_array_equal(dst["params"]["policy"]["params"]["Dense_1"]["kernel"],
                                   src["params"]["policy"]["params"]["Dense_1"]["kernel"])
     chex.assert_trees_all_equal(dst["novelty"], src["novelty"])
+    # the second value head: (256, 1) a seed, the one head's tree plus it (old checkpoints load)
+    src_heads, dst_heads = (r["params"]["policy"]["params"] for r in (src, dst))
+    assert set(dst_heads) - set(src_heads) == {"IntrinsicValue"} and set(src_heads) <= set(dst_heads)
+    assert dst_heads["IntrinsicValue"]["kernel"].shape == (2, 256, 1)
     runs.run(new, tmp_path / "dst", quiet=True, resume=True)  # and it trains on from step 40
     rows = list(csv.DictReader(open(tmp_path / "dst" / "metrics.csv")))
     assert sorted((int(r["env_steps"]), int(r["seed"])) for r in rows) == [(s, i) for s in (20, 40, 60, 80) for i in (0, 1)]
+    trained = runs.load_checkpoint(tmp_path / "dst")["runner"]["params"]["policy"]["params"]["IntrinsicValue"]
+    chex.assert_tree_all_finite(trained)
+    for seed in (0, 1):  # the non-episodic bonus trains its own head
+        assert not np.array_equal(trained["kernel"][seed], dst_heads["IntrinsicValue"]["kernel"][seed])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from helpers import flat_draw, random_rollout
 
-from simjax import runs
+from simjax import runs, runtime
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer
 from simjax.envs import make
@@ -435,9 +435,10 @@ def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus
     # the network each member trains with (EC's stays fixed during the run): point 1's members
     # were given point 0's pretraining; pretrained on their own, they get the same
     trainer = make_trainer(config)
-    fresh = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
-    point1 = jax.tree.map(lambda x: x[2:], fresh)
-    own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True)[0].params["novelty"]
+    with runtime.matmul_precision(config.precision):  # as the run traced them: its init's program, loaded
+        fresh = jax.jit(jax.vmap(trainer.init))(*batch_inputs(config, grid))
+        point1 = jax.tree.map(lambda x: x[2:], fresh)
+        own = pretrain(trainer.pretrain, point1, tmp_path, [0, 1], quiet=True)[0].params["novelty"]
     saved = load_checkpoint(out)["runner"]["params"]["novelty"]
     chex.assert_trees_all_close(jax.tree.map(lambda x: x[2:], saved), jax.device_get(own), rtol=1e-6, atol=1e-7)
     first = jax.tree.leaves(saved)[0]

@@ -234,6 +234,23 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
 
 
 
+def member_programs(trainer, sharding=None):
+    """A run's two programs over its members (leading axis: member), jitted: ``init(keys,
+    hypers)`` and ``chunk(runner) -> (runner, row)``, one chunk of updates and its row's
+    measures (``summarize``). Traced inside ``runtime.matmul_precision(config.precision)``, as
+    ``run`` traces them, they are the run's own programs (the compilation cache's too)."""
+    from simjax.agents import summarize
+
+    shard = {} if sharding is None else {"in_shardings": sharding, "out_shardings": sharding}
+
+    def chunk_and_summarize(r):
+        r, metrics = trainer.run_chunk(r)
+        return r, summarize(metrics)
+
+    # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
+    return jax.jit(jax.vmap(trainer.init), **shard), jax.jit(jax.vmap(chunk_and_summarize), **shard)
+
+
 def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = False,
         tensorboard: bool = False, sweep: dict | None = None,
         devices=None, checkpoint_every: float = CHECKPOINT_EVERY) -> Path:
@@ -257,7 +274,7 @@ def run(config: TrainConfig, out: Path, quiet: bool = False, resume: bool = Fals
 def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboard: bool, sweep: dict | None,
            devices, checkpoint_every: float) -> Path:
     from simjax import plotting, runtime
-    from simjax.agents import make_trainer, summarize
+    from simjax.agents import make_trainer
 
     runtime.enable_compilation_cache()
     out = Path(out)
@@ -278,7 +295,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
     done_steps, wall_before = 0, 0.0
     rows = [list(columns)]
     sharding = batch_sharding(len(batch), devices)
-    shard = {} if sharding is None else {"in_shardings": sharding, "out_shardings": sharding}
+    init, chunk = member_programs(trainer, sharding)
     steps_per_chunk = config.updates_per_log * config.steps_per_update
     if resume and (out / "checkpoint.msgpack").exists():
         ckpt = load_checkpoint(out, runner_template(trainer, config, sweep))
@@ -288,14 +305,7 @@ def _train(config: TrainConfig, out: Path, quiet: bool, resume: bool, tensorboar
         wall_before = float(rows[-1][-1]) if len(rows) > 1 else 0.0
     else:
         (out / PRETRAIN_STATE).unlink(missing_ok=True)  # a fresh run never goes on from an earlier one's
-        runner = jax.jit(jax.vmap(trainer.init), **shard)(*jax.device_put(batch_inputs(config, grid), sharding))
-
-    def chunk_and_summarize(r):
-        r, metrics = trainer.run_chunk(r)
-        return r, summarize(metrics)
-
-    # no buffer donation: a Ctrl-C must leave the last finished runner intact to be saved
-    chunk = jax.jit(jax.vmap(chunk_and_summarize), **shard)
+        runner = init(*jax.device_put(batch_inputs(config, grid), sharding))
     finite = jax.jit(finite_parameters)
 
     total = config.step_offset + config.num_logs * steps_per_chunk
