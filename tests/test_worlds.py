@@ -325,17 +325,26 @@ def test_explore_goals_pickup_respawns_the_agent_and_keeps_the_goal():
     assert float(again.reward) == 10.0 and float(again.pipeline_state.ep_return) == 20.0
 
 
-def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between():
+@pytest.fixture(scope="module")
+def explore_goals_walks():
+    """8 agents x 300 random steps (turn, turn, forward at 0.2, 0.2, 0.6) through DMLab's
+    explore-goals with 40-step episodes, so 7 new mazes each: one compiled program for the two
+    tests below. The states after each step, on the host."""
     env = ExploreGoalsEnv(max_steps=40)
-    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (4, 120), p=jnp.array([0.2, 0.2, 0.6]))
-    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(jax.random.split(jax.random.PRNGKey(1), 4), actions)
+    keys = jax.random.split(jax.random.PRNGKey(5), 8)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
+    return env, jax.device_get(jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions))
+
+
+def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between(explore_goals_walks):
+    _, states = explore_goals_walks
     done = np.asarray(states.done)
-    assert (done.sum(1) == 3).all() and (np.asarray(states.info["truncation"])[done > 0] == 1).all()
-    goal = np.asarray(states.pipeline_state.world.items.pos[:, :, 0])  # (4, T, 2)
-    walls = np.asarray(states.pipeline_state.world.walls.v_lo)  # (4, T, V)
-    for i in range(4):
+    assert (done.sum(1) == 7).all() and (np.asarray(states.info["truncation"])[done > 0] == 1).all()
+    goal = np.asarray(states.pipeline_state.world.items.pos[:, :, 0])  # (8, T, 2)
+    walls = np.asarray(states.pipeline_state.world.walls.v_lo)  # (8, T, V)
+    for i in range(8):
         ends = np.flatnonzero(done[i])
-        episodes = np.split(np.arange(120), ends + 1)[:-1]
+        episodes = np.split(np.arange(300), ends + 1)[:-1]
         for ep in episodes:
             after_end = ep[:-1]  # the last state of an episode already holds the next one
             assert (goal[i, after_end] == goal[i, after_end[0]]).all()
@@ -344,21 +353,18 @@ def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between():
         assert all(not (walls[i, a] == walls[i, b]).all() for a, b in zip([ends[0] - 1] + firsts[:-1], firsts))
 
 
-def test_explore_goals_agents_never_cross_a_standing_wall():
-    env = ExploreGoalsEnv(max_steps=10_000)
-    keys = jax.random.split(jax.random.PRNGKey(5), 8)
-    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
-    states = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions)
+def test_explore_goals_agents_never_cross_a_standing_wall(explore_goals_walks):
+    env, states = explore_goals_walks
     r = env.motion_params.radius
-    for i in range(8):
-        boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
-        pos = np.asarray(states.pipeline_state.pose.pos[i])
-        overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
-                   & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
-        assert not overlap.any()
-        assert (np.abs(pos - 550) < 450).all()  # inside the maze's outer wall ring
-    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
-    assert travelled > 8 * 300 * 1.5
+    pos = np.asarray(states.pipeline_state.pose.pos)  # (8, T, 2)
+    boxes = np.asarray(states.pipeline_state.world.boxes)  # (8, T, S, 4): each state's own maze
+    overlap = ((pos[..., None, 0] - r < boxes[..., 2]) & (pos[..., None, 0] + r > boxes[..., 0])
+               & (pos[..., None, 1] - r < boxes[..., 3]) & (pos[..., None, 1] + r > boxes[..., 1]))
+    assert not overlap.any()
+    assert (np.abs(pos - 550) < 450).all()  # inside the maze's outer wall ring
+    moves = np.abs(np.diff(pos, axis=1)).sum(-1)  # (8, T - 1)
+    within = np.asarray(states.done)[:, 1:] == 0  # not the jump to a new episode's spawn point
+    assert moves[within].sum() > within.sum() * 1.5
 
 
 # ---- explore-goals-paper: the paper's wording ---------------------------------------------
@@ -425,15 +431,25 @@ def test_generator_rejects_bad_settings():
         MazeGenerator(loop_prob=1.5)
 
 
-def test_explore_goals_paper_new_maze_each_episode_same_maze_within():
-    env = ExploreGoalsPaperEnv(max_steps=4)
-    states = jax.jit(lambda s, a: walk(env, s, a))(jax.jit(env.reset)(jax.random.PRNGKey(1)), jnp.zeros((12,), jnp.int32))
-    standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (12, V) per step
+@pytest.fixture(scope="module")
+def paper_walks():
+    """As ``explore_goals_walks``, in the paper's wording of the task (``explore-goals-paper``)."""
+    env = ExploreGoalsPaperEnv(max_steps=40)
+    keys = jax.random.split(jax.random.PRNGKey(5), 8)
+    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
+    return env, jax.device_get(jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions))
+
+
+def test_explore_goals_paper_new_maze_each_episode_same_maze_within(paper_walks):
+    _, states = paper_walks
+    standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (8, T, V) per step
     done = np.asarray(states.done)
-    assert np.flatnonzero(done).tolist() == [3, 7, 11]
+    assert [np.flatnonzero(d).tolist() for d in done] == [list(range(39, 300, 40))] * 8
     assert (states.info["truncation"][done > 0] == 1).all()  # the time limit; there is no other end
-    assert (standing[0] == standing[2]).all()  # same maze within an episode
-    assert not (standing[3] == standing[2]).all() and not (standing[7] == standing[3]).all()
+    for i in range(8):
+        for end in range(39, 300, 40):
+            assert (standing[i, end - 39] == standing[i, end - 1]).all()  # same maze within an episode
+            assert not (standing[i, end] == standing[i, end - 1]).all()  # a new one after its end
 
 
 def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
@@ -457,21 +473,17 @@ def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
     assert float(new.ep_return) == 10.0
 
 
-def test_explore_goals_paper_agents_never_cross_a_standing_wall():
-    env = ExploreGoalsPaperEnv(max_steps=10_000)
-    keys = jax.random.split(jax.random.PRNGKey(5), 8)
-    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
-    run = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))
-    states = run(keys, actions)
+def test_explore_goals_paper_agents_never_cross_a_standing_wall(paper_walks):
+    env, states = paper_walks
     r = env.motion_params.radius
-    for i in range(8):
-        boxes = np.asarray(states.pipeline_state.world.boxes[i, 0])
-        pos = np.asarray(states.pipeline_state.pose.pos[i])
-        overlap = ((pos[:, None, 0] - r < boxes[None, :, 2]) & (pos[:, None, 0] + r > boxes[None, :, 0])
-                   & (pos[:, None, 1] - r < boxes[None, :, 3]) & (pos[:, None, 1] + r > boxes[None, :, 1]))
-        assert not overlap.any()
-    travelled = np.abs(np.diff(np.asarray(states.pipeline_state.pose.pos), axis=1)).sum()
-    assert travelled > 8 * 300 * 1.5  # (agents pinned in corners turn out slowly: 8.4 deg a step)
+    pos = np.asarray(states.pipeline_state.pose.pos)  # (8, T, 2)
+    boxes = np.asarray(states.pipeline_state.world.boxes)  # (8, T, S, 4): each state's own maze
+    overlap = ((pos[..., None, 0] - r < boxes[..., 2]) & (pos[..., None, 0] + r > boxes[..., 0])
+               & (pos[..., None, 1] - r < boxes[..., 3]) & (pos[..., None, 1] + r > boxes[..., 1]))
+    assert not overlap.any()
+    moves = np.abs(np.diff(pos, axis=1)).sum(-1)  # (8, T - 1)
+    within = np.asarray(states.done)[:, 1:] == 0  # not the jump to a new episode's spawn point
+    assert moves[within].sum() > within.sum() * 1.5  # (agents pinned in corners turn out slowly: 8.4 deg a step)
 
 
 @pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3), ("explore-goals-paper", 3)])
