@@ -12,7 +12,7 @@ import pytest
 from flax import serialization
 from helpers import RND_TINY, one_chunk
 
-from simjax import runs
+from simjax import runs, runtime
 from simjax import train as cli
 from simjax.agents import TrainConfig, make_trainer, n_step_returns, summarize, total_reward
 from simjax.agents.a2c import Transition, a2c_loss
@@ -166,25 +166,29 @@ def _tiny_config(**kw):
     return TrainConfig(**{**base, **kw})
 
 
+# two seeds of each learner on the smallest batch that fills SIM's windows (8 steps of 2 envs):
+# the tests below share each learner's programs (a2c, rnd, icm), and SIM's with the resumed run
+def _small(algo, **kw):
+    return _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2,
+                        **{"num_seeds": 1 if algo == "sim" else 2, **kw})
+
+
 def test_update_shapes_determinism_and_seeds_vmap():
-    config = _tiny_config(num_seeds=2)
-    trainer = make_trainer(config)
+    config = _small("a2c")
+    trainer, runner, after, metrics = one_chunk(config)
     keys, hypers = batch_inputs(config, grid_of({}))
-    init = jax.jit(jax.vmap(trainer.init))
-    chunk = jax.jit(jax.vmap(trainer.run_chunk))
-    runner = init(keys, hypers)
     # each member is what its own init gives (the orthogonal initialisers draw member by member)
-    chex.assert_trees_all_equal(jax.tree.map(lambda x: x[1], runner), jax.jit(trainer.init)(keys[1]))
-    chex.assert_shape(runner.env_state.obs, (2, 8, 42, 42, 3))
-    chex.assert_shape(runner.carry, ((2, 8, 256), (2, 8, 256)))
-    after, metrics = chunk(runner)
+    with runtime.matmul_precision(config.precision):
+        chex.assert_trees_all_equal(jax.tree.map(lambda x: x[1], runner), jax.jit(trainer.init)(keys[1]))
+    chex.assert_shape(runner.env_state.obs, (2, 2, 42, 42, 3))
+    chex.assert_shape(runner.carry, ((2, 2, 256), (2, 2, 256)))
     chex.assert_shape(list(metrics.values()), (2,))
-    chex.assert_tree_all_finite((after.params, metrics))
+    chex.assert_tree_all_finite((after.params, {k: metrics[k] for k in training.FINITE_TERMS}))
     # parameters moved, the two seeds differ, and the same keys give bit-identical results
     assert not np.allclose(jax.tree.leaves(after.params)[0], jax.tree.leaves(runner.params)[0])
     leaf = np.asarray(jax.tree.leaves(after.params)[-1])
     assert not np.allclose(leaf[0], leaf[1])
-    again, metrics2 = chunk(init(keys, hypers))
+    _, _, again, metrics2 = one_chunk(config)
     chex.assert_trees_all_equal(after.params, again.params)
     chex.assert_trees_all_equal(metrics, metrics2)
 
@@ -331,13 +335,7 @@ def test_a_damaged_checkpoint_is_a_one_line_error_naming_its_file(tmp_path, caps
 
 @pytest.mark.parametrize("algo", [pytest.param("sim", marks=pytest.mark.xdist_group("sim_tiny_run")), "rnd", "icm"])
 def test_novelty_learner_updates_both_parts_and_never_the_target(algo):
-    config = _tiny_config(algo=algo, num_envs=2, rollout_len=4, total_steps=16, log_every=16, obs_len=3, act_len=2)
-    if algo == "sim":  # SIM_TINY: the run's own programs, which the resumed-run test compiles too
-        _, runner, after, metrics = one_chunk(config)
-    else:
-        trainer = make_trainer(config)
-        runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())  # traced: a program for any values
-        after, metrics = jax.jit(trainer.run_chunk)(runner)
+    _, runner, after, metrics = one_chunk(_small(algo))  # sim: the resumed-run test's programs
     chex.assert_tree_all_finite((after.params, {k: metrics[k] for k in training.FINITE_TERMS}))
     before_p, after_p = runner.params, after.params
     for part in ("policy", "novelty"):  # both trained by the one optimiser
@@ -353,12 +351,8 @@ def test_with_zero_bonus_the_policy_trains_exactly_as_plain_a2c():
     """eq. (8) scales the RL loss by eta; the policy group's clip and Adam epsilon are scaled with
     it, so a novelty learner whose bonus is 0 takes A2C's policy steps (to float rounding)."""
     policies = []
-    for algo in ("a2c", "rnd"):  # rnd: test_novelty_learner_updates_both_parts_and_never_the_target's program
-        config = _tiny_config(algo=algo, bonus_scale=0.0, num_envs=2, rollout_len=4, total_steps=16, log_every=16,
-                              obs_len=3, act_len=2)
-        trainer = make_trainer(config)
-        runner = jax.jit(trainer.init)(jax.random.PRNGKey(0), config.hyper())
-        after, _ = jax.jit(trainer.run_chunk)(runner)
+    for algo in ("a2c", "rnd"):  # the programs of the two tests above (the bonus's scale is traced)
+        _, runner, after, _ = one_chunk(_small(algo, bonus_scale=0.0))
         policies.append((runner.params["policy"], after.params["policy"]))
     (before, a2c), (rnd_before, rnd) = policies
     chex.assert_trees_all_equal(before, rnd_before)
