@@ -330,14 +330,18 @@ def explore_goals_walks():
     """8 agents x 300 random steps (turn, turn, forward at 0.2, 0.2, 0.6) through DMLab's
     explore-goals with 40-step episodes, so 7 new mazes each: one compiled program for the two
     tests below. The states after each step, on the host."""
-    env = ExploreGoalsEnv(max_steps=40)
+    return _walks(ExploreGoalsEnv(max_steps=40))
+
+
+def _walks(env):
     keys = jax.random.split(jax.random.PRNGKey(5), 8)
     actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
-    return env, jax.device_get(jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions))
+    run = jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))
+    return env, jax.device_get(run(keys, actions)), jax.device_get(run(keys, actions))  # twice: determinism
 
 
 def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between(explore_goals_walks):
-    _, states = explore_goals_walks
+    _, states, _ = explore_goals_walks
     done = np.asarray(states.done)
     assert (done.sum(1) == 7).all() and (np.asarray(states.info["truncation"])[done > 0] == 1).all()
     goal = np.asarray(states.pipeline_state.world.items.pos[:, :, 0])  # (8, T, 2)
@@ -354,7 +358,7 @@ def test_explore_goals_goal_and_maze_stay_all_episode_and_change_between(explore
 
 
 def test_explore_goals_agents_never_cross_a_standing_wall(explore_goals_walks):
-    env, states = explore_goals_walks
+    env, states, _ = explore_goals_walks
     r = env.motion_params.radius
     pos = np.asarray(states.pipeline_state.pose.pos)  # (8, T, 2)
     boxes = np.asarray(states.pipeline_state.world.boxes)  # (8, T, S, 4): each state's own maze
@@ -434,14 +438,11 @@ def test_generator_rejects_bad_settings():
 @pytest.fixture(scope="module")
 def paper_walks():
     """As ``explore_goals_walks``, in the paper's wording of the task (``explore-goals-paper``)."""
-    env = ExploreGoalsPaperEnv(max_steps=40)
-    keys = jax.random.split(jax.random.PRNGKey(5), 8)
-    actions = jax.random.choice(jax.random.PRNGKey(6), 3, (8, 300), p=jnp.array([0.2, 0.2, 0.6]))
-    return env, jax.device_get(jax.jit(jax.vmap(lambda k, a: walk(env, k, a)))(keys, actions))
+    return _walks(ExploreGoalsPaperEnv(max_steps=40))
 
 
 def test_explore_goals_paper_new_maze_each_episode_same_maze_within(paper_walks):
-    _, states = paper_walks
+    _, states, _ = paper_walks
     standing = np.asarray(states.pipeline_state.world.walls.v_lo) < 1e8  # (8, T, V) per step
     done = np.asarray(states.done)
     assert [np.flatnonzero(d).tolist() for d in done] == [list(range(39, 300, 40))] * 8
@@ -474,7 +475,7 @@ def test_explore_goals_paper_goal_pays_ten_and_moves_agent_and_goal():
 
 
 def test_explore_goals_paper_agents_never_cross_a_standing_wall(paper_walks):
-    env, states = paper_walks
+    env, states, _ = paper_walks
     r = env.motion_params.radius
     pos = np.asarray(states.pipeline_state.pose.pos)  # (8, T, 2)
     boxes = np.asarray(states.pipeline_state.world.boxes)  # (8, T, S, 4): each state's own maze
@@ -486,7 +487,23 @@ def test_explore_goals_paper_agents_never_cross_a_standing_wall(paper_walks):
     assert moves[within].sum() > within.sum() * 1.5  # (agents pinned in corners turn out slowly: 8.4 deg a step)
 
 
-@pytest.mark.parametrize("name,actions", [("melon", 3), ("explore-goals", 3), ("explore-goals-paper", 3)])
+@pytest.mark.parametrize("walks", ["explore_goals_walks", "paper_walks"])
+def test_explore_goals_shapes_dtypes_and_determinism(walks, request):
+    """On the walks' vmapped program: the registered tasks are these envs with 1,350-step episodes."""
+    env, states, again = request.getfixturevalue(walks)
+    chex.assert_shape(states.obs, (8, 300, 42, 42, 3))
+    chex.assert_type(states.obs, jnp.uint8)
+    chex.assert_shape([states.reward, states.done, states.info["truncation"]], (8, 300))
+    chex.assert_type([states.reward, states.done], jnp.float32)
+    chex.assert_tree_all_finite(states.pipeline_state.pose)
+    chex.assert_trees_all_equal(states, again)
+    name = "explore-goals" if walks == "explore_goals_walks" else "explore-goals-paper"
+    registered = make(name)
+    assert type(registered) is type(env) and registered.task.max_steps == 1350
+    assert registered.action_size == env.action_size == 3 and registered.observation_size == (42, 42, 3)
+
+
+@pytest.mark.parametrize("name,actions", [("melon", 3)])
 def test_new_tasks_shapes_dtypes_and_determinism(name, actions):
     env = make(name)
     keys = jax.random.split(jax.random.PRNGKey(0), 4)
