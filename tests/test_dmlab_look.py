@@ -198,15 +198,6 @@ def test_items_are_drawn_in_their_models_colours():
     np.testing.assert_allclose(shown[changed].mean(0), opaque.mean(0), atol=40)
 
 
-def test_dmlab_look_batches_under_jit_and_vmap():
-    for name in ("melon", "explore-goals", "explore-goals-paper"):
-        env = make(name)
-        states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(1), 2))
-        states = jax.jit(jax.vmap(env.step))(states, jnp.asarray([2, 0], jnp.int32))
-        chex.assert_shape(states.obs, (2, 42, 42, 3))
-        chex.assert_type(states.obs, jnp.uint8)
-
-
 # ---- the worlds as they were ---------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["melon-doom-motion", "melon-dmlab-doom-motion", "explore-goals-doom-motion",
                                   "explore-goals-paper-doom-motion"])
