@@ -367,7 +367,6 @@ def test_a_resumed_run_is_the_run_it_would_have_been(tmp_path, monkeypatch):
     its last checkpoint (they are dropped and trained again): resumed, it is the whole run."""
     import shutil
 
-
     config = _tiny_config(algo="sim", num_envs=2, rollout_len=4, total_steps=48, log_every=16, obs_len=3, act_len=2)
     written = []  # the steps of each checkpoint written
     monkeypatch.setattr(training, "write_checkpoint", lambda out, r, steps, seeds: written.append(steps)

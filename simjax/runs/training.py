@@ -233,7 +233,6 @@ def pretrain(pretrainer, runner, out: Path, seeds: list[int], quiet: bool,
     return runner, wall_before
 
 
-
 def member_programs(trainer, sharding=None):
     """A run's two programs over its members (leading axis: member), jitted: ``init(keys,
     hypers)`` and ``chunk(runner) -> (runner, row)``, one chunk of updates and its row's
