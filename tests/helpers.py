@@ -6,8 +6,11 @@ import jax
 
 # One small RND run's settings, for the tests that train through the run folder (restore, TensorBoard,
 # SIGTERM, fork): marked xdist_group("rnd_tiny_run"), they share a worker, so the first compiles the
-# programs and the others load them from the session's cache (a fork's new program aside)
-RND_TINY = dict(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, log_every=20, num_seeds=2)
+# programs and the others load them from the session's cache (a fork's new program aside). The
+# precision is named: the command's default is bfloat16 on a CPU with bfloat16 products and
+# TrainConfig's is highest, so the tests that go through the command would otherwise compile
+# programs of their own on such a CPU
+RND_TINY = dict(env="maze-tiny", algo="rnd", num_envs=4, rollout_len=5, log_every=20, num_seeds=2, precision="highest")
 
 
 def flags(settings: dict) -> list[str]:

@@ -75,7 +75,7 @@ def _hand_piece_gradients(network, config: TrainConfig, runner, traj: Transition
     def policy_loss(p):
         obs = jnp.concatenate([traj.obs[:, i], last_obs[i][None]])[:, None]
         reset = jnp.concatenate([traj.reset[:, i], last_reset[i][None]])[:, None]
-        carry = jax.tree.map(lambda c: c[i : i + 1], runner.carry)
+        carry = jax.tree.map(lambda c: jax.lax.dynamic_slice_in_dim(c, i, 1), runner.carry)
         _, logits, values = network.apply(p, carry, obs, reset)
         logits, values = logits[:, 0], values[:, 0]
         v = jax.lax.stop_gradient(values)
@@ -105,14 +105,14 @@ def hand_gradients(network, config, runner, traj, last_obs, last_reset):
         def piece(runner, traj, last_obs, last_reset, i, steps):
             return _hand_piece_gradients(network, config, runner, traj, last_obs, last_reset, i, steps)
 
-        _HAND[config] = jax.jit(piece, static_argnums=4)
+        _HAND[config] = jax.jit(piece)  # the actor i traced: one program for every actor
     grads = {"policy": [], "novelty": []}
     for i, pieces in enumerate(hand_pieces(traj.done)):
         per_piece = []
         for steps in pieces:
             mask = np.zeros(T, np.float32)
             mask[steps] = 1.0
-            per_piece.append(_HAND[config](runner, traj, last_obs, last_reset, i, jnp.asarray(mask)))
+            per_piece.append(_HAND[config](runner, traj, last_obs, last_reset, jnp.int32(i), jnp.asarray(mask)))
         for group in grads:
             grads[group].append([g[group] for g in per_piece])
     return grads

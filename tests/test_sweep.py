@@ -171,8 +171,14 @@ def _tiny(**kw):
                 num_seeds=2) | kw
 
 
+# one seed, two rows of two updates: the plain run of L = 2 below is then the resumed-run test's
+# SIM programs (tests/test_agents.py), loaded from the session's cache when that test compiled them
+_ONE_PROGRAM = dict(num_seeds=1, total_steps=32, log_every=16)
+
+
+@pytest.mark.xdist_group("sim_tiny_run")  # its plain run's programs are the resumed-run test's
 def test_a_sweep_is_one_program_and_each_point_is_the_run_of_its_own(tmp_path, monkeypatch):
-    config, grid = check_sweep(_tiny(), {"act_len": [1, 2, 3]})
+    config, grid = check_sweep(_tiny(**_ONE_PROGRAM), {"act_len": [1, 2, 3]})
     counter = _Compiles()
     logging.getLogger("jax").addHandler(counter)
     monkeypatch.setenv("JAX_LOG_COMPILES", "1")
@@ -182,7 +188,7 @@ def test_a_sweep_is_one_program_and_each_point_is_the_run_of_its_own(tmp_path, m
     finally:
         jax.config.update("jax_log_compiles", False)
         logging.getLogger("jax").removeHandler(counter)
-    assert counter.chunks == 1  # 3 points x 2 seeds, one compiled training program
+    assert counter.chunks == 1  # 3 points, one compiled training program
 
     out = tmp_path / "sweep"
     record = json.loads((out / "config.json").read_text())
@@ -190,7 +196,7 @@ def test_a_sweep_is_one_program_and_each_point_is_the_run_of_its_own(tmp_path, m
     header = next(csv.reader(open(out / "metrics.csv")))
     assert header[:3] == ["act_len", "env_steps", "seed"]
     members = read_members(out)
-    assert sorted(members) == [(((("act_len", float(L)),), s)) for L in (1, 2, 3) for s in (0, 1)]
+    assert sorted(members) == [(((("act_len", float(L)),), 0)) for L in (1, 2, 3)]
     assert all(len(cols["env_steps"]) == 2 for cols in members.values())
     assert (out / "curve.png").exists() and (out / "checkpoint.msgpack").exists()
     # the points differ: L changes the forward loss from the first rows on
@@ -198,12 +204,11 @@ def test_a_sweep_is_one_program_and_each_point_is_the_run_of_its_own(tmp_path, m
     assert len(set(first.values())) == 3, first
 
     # a plain run of L = 2 (windows built for L = 2): the sweep's L = 2 members, to float tolerance
-    runs.run(TrainConfig(**_tiny(act_len=2)), tmp_path / "plain", quiet=True)
-    plain = {seed: cols for ((), seed), cols in read_members(tmp_path / "plain").items()}
-    for seed in (0, 1):
-        mine = members[((("act_len", 2.0),), seed)]
-        for column in ("policy_loss", "value_loss", "entropy", "forward_loss", "inverse_loss", "bonus_mean"):
-            np.testing.assert_allclose(mine[column], plain[seed][column], rtol=2e-4, atol=1e-6, err_msg=column)
+    runs.run(TrainConfig(**_tiny(act_len=2, **_ONE_PROGRAM)), tmp_path / "plain", quiet=True)
+    (((), seed), plain), = read_members(tmp_path / "plain").items()
+    mine = members[((("act_len", 2.0),), seed)]
+    for column in ("policy_loss", "value_loss", "entropy", "forward_loss", "inverse_loss", "bonus_mean"):
+        np.testing.assert_allclose(mine[column], plain[column], rtol=2e-4, atol=1e-6, err_msg=column)
 
 
 def test_a_sweep_resumes_where_it_stopped(tmp_path):
