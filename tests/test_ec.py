@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import flags as settings_flags
 from helpers import flat_draw, random_rollout
 
 from simjax import runs, runtime
@@ -350,23 +351,32 @@ def test_checkpoints_from_before_the_model_state_still_load(tmp_path):
 
 # ------------------------------------------------------------------------------- end to end
 
+# the tiny EC run of the two tests below (2 seeds, two pretraining chunks): marked
+# xdist_group("ec_tiny_run"), they share a worker, and the second loads the pretraining's
+# programs from the session's cache (the precision named: the command's default may differ)
+EC_TINY = dict(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8, ec_memory=8,
+               ec_pretrain_steps=2000, ec_pretrain_epochs=3, total_steps=2016, log_every=8, num_seeds=2,
+               precision="highest")
+
+
+@pytest.mark.xdist_group("ec_tiny_run")
 def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_the_last_chunk(
         tmp_path, capsys, monkeypatch):
     """``python -m simjax.train --algo ec`` on maze-tiny: pretraining in two chunks, then rows
     from its end; the same run stopped after the first chunk and resumed with ``--resume`` is
     the whole run, bit for bit (its rows, pretrain.csv and checkpoint)."""
-    flags = ["--algo", "ec", "--env", "maze-tiny", "--num-envs", "2", "--rollout-len", "4", "--ec-width", "4",
-             "--ec-embed", "8", "--ec-memory", "8", "--ec-pretrain-steps", "2000", "--ec-pretrain-epochs", "3",
-             "--total-steps", "2016", "--log-every", "8", "--quiet"]
+    flags = [*settings_flags(EC_TINY), "--quiet"]
     whole, parts = tmp_path / "whole", tmp_path / "parts"
     assert cli.main([*flags, "--out", str(whole)]) == 0
     with open(whole / "metrics.csv") as f:
         rows = list(csv.DictReader(f))
-    assert [int(r["env_steps"]) for r in rows] == [2008, 2016]  # the curve starts after the 2,000 steps
+    assert [(int(r["env_steps"]), int(r["seed"])) for r in rows] == [(2008, 0), (2008, 1), (2016, 0), (2016, 1)]
+    # (the curve starts after the 2,000 steps)
     assert all(np.isfinite(float(r["bonus_mean"])) for r in rows)
     with open(whole / "pretrain.csv") as f:
         pre = list(csv.DictReader(f))
-    assert [int(r["env_steps"]) for r in pre] == [1000, 2000] and all(0 <= float(r["accuracy"]) <= 1 for r in pre)
+    assert [(int(r["env_steps"]), int(r["seed"])) for r in pre] == [(1000, 0), (1000, 1), (2000, 0), (2000, 1)]
+    assert all(0 <= float(r["accuracy"]) <= 1 for r in pre)
     ckpt = load_checkpoint(whole)
     assert ckpt["env_steps"] == 2016 and np.asarray(ckpt["runner"]["novelty"]["model"]["count"]).min() >= 1
     assert not (whole / PRETRAIN_STATE).exists()  # removed once the pretraining's checkpoint is written
@@ -389,18 +399,17 @@ def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_t
     assert cli.main([*flags, "--out", str(parts)]) == 130
     assert saved == [1] and not (parts / "metrics.csv").exists()
     first_rows = (parts / "pretrain.csv").read_text().splitlines()
-    assert len(first_rows) == 2  # header + the first chunk's row
+    assert len(first_rows) == 3  # header + the first chunk's row of each seed
     assert load_checkpoint(parts)["env_steps"] == 0
-    plan = TrainConfig(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_pretrain_steps=2000, ec_pretrain_epochs=3,
-                       total_steps=2016).pretrain_plan
-    assert read_pretrain_state(parts, plan, [0])["chunks"] == 1
+    plan = TrainConfig(**EC_TINY).pretrain_plan
+    assert read_pretrain_state(parts, plan, [0, 1])["chunks"] == 1
     with pytest.raises(ValueError, match="another pretraining's"):  # e.g. a stale file of other settings
         read_pretrain_state(parts, dataclasses.replace(plan, calls=plan.calls + 1))
     monkeypatch.setattr(training, "write_pretrain_state", record)
     assert cli.main(["--resume", str(parts), "--quiet"]) == 0
     assert saved == [1, 2]  # the resumed run trained the second chunk only
     assert not (parts / PRETRAIN_STATE).exists()
-    assert (parts / "pretrain.csv").read_text().splitlines()[:2] == first_rows  # kept as written, wall_s too
+    assert (parts / "pretrain.csv").read_text().splitlines()[:3] == first_rows  # kept as written, wall_s too
     drop = ("steps_per_s", "wall_s")
     for name in ("pretrain.csv", "metrics.csv"):
         a, b = ([{k: v for k, v in r.items() if k not in drop} for r in csv.DictReader(open(d / name))]
@@ -410,25 +419,24 @@ def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_t
     capsys.readouterr()
 
 
+@pytest.mark.xdist_group("ec_tiny_run")  # EC_TINY's pretraining, as a sweep
 def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus(tmp_path):
     """A sweep of alpha (``--bonus-scale``) over 2 seeds: pretrain.csv has a row per seed, not
     per member; every point's member of a seed gets the network that pretraining the member on
     its own gives; the first update's bonus of each point is its alpha times the same novelty
     (the members of a seed start alike)."""
     sweep = {"bonus_scale": [0.01, 0.03]}
-    config, grid = check_sweep(dict(env="maze-tiny", algo="ec", num_envs=2, rollout_len=4, ec_width=4, ec_embed=8,
-                                    ec_memory=8, ec_pretrain_steps=200, ec_pretrain_epochs=3, total_steps=216,
-                                    log_every=8, num_seeds=2), sweep)
+    config, grid = check_sweep(EC_TINY, sweep)
     out = tmp_path / "sweep"
     runs.run(config, out, quiet=True, sweep=sweep)
     with open(out / "pretrain.csv") as f:
         pre = list(csv.DictReader(f))
-    assert [(int(r["env_steps"]), int(r["seed"])) for r in pre] == [(200, 0), (200, 1)]
+    assert [(int(r["env_steps"]), int(r["seed"])) for r in pre] == [(1000, 0), (1000, 1), (2000, 0), (2000, 1)]
     members = read_members(out)
     assert sorted(members) == [((("bonus_scale", a),), s) for a in (0.01, 0.03) for s in (0, 1)]
     for seed in (0, 1):
         low, high = (members[((("bonus_scale", a),), seed)] for a in (0.01, 0.03))
-        assert list(low["env_steps"]) == [208, 216]  # the rows start after the pretraining
+        assert list(low["env_steps"]) == [2008, 2016]  # the rows start after the pretraining
         assert abs(low["bonus_mean"][0]) > 0
         np.testing.assert_allclose(high["bonus_mean"][0], 3.0 * low["bonus_mean"][0], rtol=1e-4)
 
