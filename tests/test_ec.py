@@ -421,8 +421,8 @@ def test_train_ec_end_to_end_and_a_run_stopped_in_its_pretraining_resumes_from_t
 
 @pytest.mark.xdist_group("ec_tiny_run")  # EC_TINY's pretraining, as a sweep
 def test_an_ec_sweep_pretrains_once_per_seed_and_each_point_scales_its_own_bonus(tmp_path):
-    """A sweep of alpha (``--bonus-scale``) over 2 seeds: pretrain.csv has a row per seed, not
-    per member; every point's member of a seed gets the network that pretraining the member on
+    """A sweep of alpha (``--bonus-scale``) over 2 seeds: pretrain.csv has a row per seed and
+    chunk, not per member; every point's member of a seed gets the network that pretraining the member on
     its own gives; the first update's bonus of each point is its alpha times the same novelty
     (the members of a seed start alike)."""
     sweep = {"bonus_scale": [0.01, 0.03]}

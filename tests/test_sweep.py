@@ -203,7 +203,7 @@ def test_a_sweep_is_one_program_and_each_point_is_the_run_of_its_own(tmp_path, m
     first = {L: members[((("act_len", float(L)),), 0)]["forward_loss"][0] for L in (1, 2, 3)}
     assert len(set(first.values())) == 3, first
 
-    # a plain run of L = 2 (windows built for L = 2): the sweep's L = 2 members, to float tolerance
+    # a plain run of L = 2 (windows built for L = 2): the sweep's L = 2 member, to float tolerance
     runs.run(TrainConfig(**_tiny(act_len=2, **_ONE_PROGRAM)), tmp_path / "plain", quiet=True)
     (((), seed), plain), = read_members(tmp_path / "plain").items()
     mine = members[((("act_len", 2.0),), seed)]
